@@ -1,0 +1,145 @@
+"""Config checks and command-line handling that run before any work (and before Ray starts)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from rovermarl import errors
+from rovermarl.env.world import CONF_DIR
+from rovermarl.evolution import build
+
+TOP_LEVEL = {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel",
+             "seeds", "seed", "generations", "levels", "ray"}
+_INT = re.compile(r"[+-]?\d+")
+_GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
+
+
+def validate(cfg: DictConfig) -> None:
+    """Raise :class:`~rovermarl.errors.ConfigError` naming the first bad key of a composed job config."""
+    for key in cfg:
+        if key not in TOP_LEVEL and key != "hydra":
+            raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
+                                     ", ".join(sorted(TOP_LEVEL)))
+    errors.integer("seeds", cfg.get("seeds"), 1)
+    errors.integer("seed", cfg.get("seed"), 0)
+    errors.integer("generations", cfg.get("generations"), 1)
+    levels = cfg.get("levels")
+    if not OmegaConf.is_list(levels):
+        raise errors.ConfigError("levels", levels, "must be a list of score levels")
+    for i, lv in enumerate(levels):
+        errors.number(f"levels[{i}]", lv)
+    par = cfg.parallel
+    errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
+    errors.integer("parallel.chunk", par.get("chunk"), 1)
+    if par.get("workers") is not None:
+        errors.integer("parallel.workers", par.workers, 1)
+    address = cfg.ray.get("address")
+    if address is not None and (not isinstance(address, str) or not address):
+        raise errors.ConfigError("ray.address", address, "must be null, 'auto' or 'HOST:PORT'")
+    if cfg.ray.get("num_cpus") is not None:
+        errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
+    build(cfg)
+
+
+def group_names(conf_dir: Path = CONF_DIR) -> set[str]:
+    return {p.name for p in Path(conf_dir).iterdir() if p.is_dir()}
+
+
+def quote_numeric_options(argv: list[str], groups: set[str] | None = None) -> list[str]:
+    """Quote integer values of config-group overrides so Hydra reads them as option names.
+
+    Hydra parses ``k=1`` as the int 1 and rejects it as a group override; ``k='1'`` is the string.
+    Plain comma lists are handled too: ``k=1,2,4,adaptive`` -> ``k='1','2','4',adaptive``.
+    Anything else (quoted values, ``choice(...)``, non-group keys) is passed through unchanged.
+    """
+    groups = group_names() if groups is None else groups
+    out = []
+    for arg in argv:
+        m = _GROUP_OVERRIDE.match(arg)
+        if m and m["group"] in groups and not re.search(r"[\"'()\[\]{}]", m["value"]):
+            items = m["value"].split(",")
+            items = [f"'{v.strip()}'" if _INT.fullmatch(v.strip()) else v for v in items]
+            arg = f"{m['prefix']}{m['group']}{m['at'] or ''}=" + ",".join(items)
+        out.append(arg)
+    return out
+
+
+def dirname(override_dirname: str) -> str:
+    """Readable sweep subdir from Hydra's override_dirname: ``k='1',setup=solo`` -> ``k=1,setup=solo``."""
+    return override_dirname.replace("'", "").replace('"', "").replace("/", "_") or "default"
+
+
+def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
+                 config_dir: str | None = None) -> list[DictConfig]:
+    """Compose the config of every job an invocation would launch (sweeps expanded as Hydra's basic
+    sweeper does). Composition problems raise :class:`~rovermarl.errors.ConfigError`."""
+    from hydra import compose, initialize_config_dir
+    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.errors import HydraException
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(argv)
+    except HydraException as e:
+        raise errors.ConfigError("override", " ".join(argv), _one_line(e)) from None
+    if multirun:
+        jobs = [job for batch in BasicSweeper.split_arguments(parsed, None) for job in batch]
+    else:
+        sweeps = [o for o in parsed if o.is_sweep_override()]
+        if sweeps:
+            key, _, value = sweeps[0].input_line.partition("=")
+            raise errors.ConfigError(key, dirname(value), "is a sweep; add -m (--multirun) to run several jobs")
+        jobs = [list(argv)]
+    if config_dir:
+        jobs = [_with_searchpath(job, config_dir) for job in jobs]
+    cfgs = []
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
+        for job in jobs:
+            try:
+                cfgs.append(compose(config_name, overrides=job))
+            except HydraException as e:
+                raise _composition_error(e, job) from None
+    return cfgs
+
+
+def _with_searchpath(job: list[str], config_dir: str) -> list[str]:
+    path = f"file://{Path(config_dir).resolve()}"
+    for i, arg in enumerate(job):
+        if arg.startswith("hydra.searchpath="):
+            return job[:i] + [arg.rstrip("]") + f",{path}]"] + job[i + 1:]
+    return [*job, f"hydra.searchpath=[{path}]"]
+
+
+def _composition_error(e: Exception, job: list[str]) -> errors.ConfigError:
+    from hydra.errors import MissingConfigException
+    if isinstance(e, MissingConfigException) and e.missing_cfg_file and e.options is not None:
+        group, _, option = str(e.missing_cfg_file).rpartition("/")
+        note = ""
+        if group == "k" and _INT.fullmatch(option):
+            note = " (a fixed k must be at most env.n_rovers; k.value=K sets any k on a fixed option)"
+        return errors.ConfigError(group, option, "no such option; allowed: " + ", ".join(e.options) + note)
+    msg = _one_line(e)
+    m = re.search(r"Could not override '([^']+)'", msg)
+    key = m.group(1) if m else "override"
+    if re.search(r"Key '([^']+)' is not in struct|To append to your config use", msg):
+        return errors.ConfigError(key, _value_of(key, job), "unknown key; check the spelling, or add it with "
+                                  f"+{key}=... if a plug-in needs it")
+    return errors.ConfigError(key, _value_of(key, job), msg)
+
+
+def _value_of(key: str, job: list[str]):
+    for arg in job:
+        k, _, v = arg.partition("=")
+        if k.lstrip("+~") == key:
+            return v
+    return None
+
+
+def _one_line(e: Exception) -> str:
+    text = " ".join(str(e).split())
+    return text.replace(" Set the environment variable HYDRA_FULL_ERROR=1 for a complete stack trace.", "")

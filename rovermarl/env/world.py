@@ -1,0 +1,222 @@
+"""The multi-rover world (SPEC sections 1-3, 5): geometry, initial conditions, observation, reward, rollout."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+from omegaconf import OmegaConf
+
+from rovermarl import errors, policy
+from rovermarl.env import kernel
+
+CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+
+_NO_XY = np.empty((0, 1, 1, 2))
+_NO_HEADING = np.empty((0, 1, 1))
+
+InitialConditions = tuple[np.ndarray, np.ndarray]  # xy (E, N, 2), heading (E, N)
+
+
+class Rollout(NamedTuple):
+    """Trajectories of E episodes: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)."""
+
+    xy: np.ndarray
+    heading: np.ndarray
+    returns: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class World:
+    """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
+
+    ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]``.
+    """
+
+    coupling: tuple[int, ...]
+    value: tuple[float, ...]
+    n_rovers: int = 4
+    steps: int = 15
+    episodes: int = 16
+    poi_distance: float = 13.0
+    obs_radius: float = 2.0
+    sensor_range: float = 30.0
+    v_max: float = 1.0
+    w_max_deg: float = 60.0
+    start_box: float = 0.5
+    hidden: int = 16
+    name: str = ""
+    poi_xy: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        n = errors.integer("env.n_rovers", self.n_rovers, 1)
+        if not isinstance(self.coupling, (list, tuple)) or len(self.coupling) == 0:
+            raise errors.ConfigError("setup.coupling", self.coupling, "must be a non-empty list of integers")
+        for j, c in enumerate(self.coupling):
+            if isinstance(c, bool) or not isinstance(c, int) or not 1 <= c <= n:
+                raise errors.ConfigError(f"setup.coupling[{j}]", c, f"must be an integer in 1..{n}: a POI "
+                                         f"cannot need more rovers than env.n_rovers={n}")
+        if not isinstance(self.value, (list, tuple)) or len(self.value) != len(self.coupling):
+            raise errors.ConfigError("setup.value", self.value,
+                                     f"must be a list of {len(self.coupling)} numbers, one per POI")
+        for j, v in enumerate(self.value):
+            errors.number(f"setup.value[{j}]", v, 0)
+        errors.integer("env.steps", self.steps, 1)
+        errors.integer("env.episodes", self.episodes, 1)
+        errors.number("env.poi_distance", self.poi_distance, 0)
+        errors.number("env.obs_radius", self.obs_radius, 0, lo_open=True)
+        errors.number("env.sensor_range", self.sensor_range, 0, lo_open=True)
+        errors.number("env.v_max", self.v_max, 0)
+        errors.number("env.w_max_deg", self.w_max_deg, 0, 180)
+        errors.number("env.start_box", self.start_box, 0)
+        errors.integer("policy.hidden", self.hidden, 1)
+        object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))
+        object.__setattr__(self, "value", tuple(float(v) for v in self.value))
+        angle = 2 * np.pi * np.arange(self.n_pois) / self.n_pois
+        poi_xy = self.poi_distance * np.stack([np.cos(angle), np.sin(angle)], axis=1)
+        object.__setattr__(self, "poi_xy", np.ascontiguousarray(poi_xy))
+        object.__setattr__(self, "_coupling", np.array(self.coupling, dtype=np.int64))
+        object.__setattr__(self, "_value", np.array(self.value, dtype=np.float64))
+        object.__setattr__(self, "_type", np.array(self.coupling, dtype=np.float64) - 1.0)
+
+    # ---- construction -------------------------------------------------------------------------
+    @classmethod
+    def from_config(cls, cfg) -> World:
+        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections."""
+        setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
+        env = OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env
+        known = {f.name for f in fields(cls) if f.init}
+        for key in env:
+            if key not in known:
+                raise errors.ConfigError(f"env.{key}", env[key], "unknown key; allowed: " +
+                                         ", ".join(sorted(known - {"coupling", "value", "hidden", "name"})))
+        for key in ("coupling", "value"):
+            if key not in setup:
+                raise errors.ConfigError(f"setup.{key}", None, "missing; every setup lists one entry per POI")
+        return cls(coupling=tuple(setup["coupling"]), value=tuple(setup["value"]),
+                   hidden=cfg.policy.hidden, name=str(setup.get("name", "")), **env)
+
+    # ---- sizes --------------------------------------------------------------------------------
+    @property
+    def n_pois(self) -> int:
+        return len(self.coupling)
+
+    @property
+    def obs_dim(self) -> int:
+        """3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers)."""
+        return 3 * self.n_pois + 2 * self.n_rovers
+
+    @property
+    def n_params(self) -> int:
+        """Genome length of one rover's policy (658 by default)."""
+        return policy.n_params(self.obs_dim, self.hidden)
+
+    @property
+    def w_max(self) -> float:
+        return math.radians(self.w_max_deg)
+
+    @property
+    def max_return(self) -> float:
+        """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo)."""
+        best = np.zeros(self.n_rovers + 1)
+        for c, v in zip(self.coupling, self.value, strict=True):
+            for cap in range(self.n_rovers, c - 1, -1):
+                best[cap] = max(best[cap], best[cap - c] + v)
+        return float(best[-1])
+
+    # ---- initial conditions -------------------------------------------------------------------
+    def initial_conditions(self, seed=0, n: int | None = None) -> InitialConditions:
+        """Draw ``n`` (default ``episodes``) starts: xy (n, N, 2), heading (n, N).
+
+        Rover ``i`` starts uniformly in the ``start_box`` square of quadrant ``i mod 4`` (0: x, y >= 0;
+        1: x <= 0, y >= 0; 2: x, y <= 0; 3: x >= 0, y <= 0), heading uniform in ``[2 pi i/N, 2 pi (i+1)/N]``.
+        ``seed`` is an int, a ``SeedSequence`` or a ``Generator``.
+        """
+        rng = np.random.default_rng(seed)
+        n = self.episodes if n is None else n
+        quadrant = np.arange(self.n_rovers) % 4
+        signs = np.stack([np.where((quadrant == 0) | (quadrant == 3), 1.0, -1.0),
+                          np.where(quadrant <= 1, 1.0, -1.0)], axis=1)
+        xy = rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)) * signs
+        sector = 2 * np.pi / self.n_rovers
+        low = sector * np.arange(self.n_rovers)
+        heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))
+        return np.ascontiguousarray(xy), np.ascontiguousarray(heading)
+
+    # ---- sensing and reward -------------------------------------------------------------------
+    def observe(self, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
+        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim)."""
+        xy, heading = self._batch(xy, heading)
+        out = np.empty(heading.shape + (self.obs_dim,))
+        kernel.sense_batch(xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers),
+                           self.poi_xy, self._type, float(self.sensor_range),
+                           out.reshape(-1, self.n_rovers, self.obs_dim))
+        return out
+
+    def team_return(self, xy: np.ndarray) -> np.ndarray:
+        """Team return of final positions: xy (..., N, 2) -> (...,)."""
+        xy = np.ascontiguousarray(xy, dtype=np.float64)
+        if xy.ndim < 2 or xy.shape[-2:] != (self.n_rovers, 2):
+            raise ValueError(f"xy must have shape (..., {self.n_rovers}, 2), got {xy.shape}")
+        out = np.empty(xy.shape[:-2])
+        kernel.team_return_batch(xy.reshape(-1, self.n_rovers, 2), self.poi_xy, self._coupling,
+                                 self._value, float(self.obs_radius), out.reshape(-1))
+        return out
+
+    # ---- rollouts -----------------------------------------------------------------------------
+    def rollout(self, genomes: np.ndarray, ic: InitialConditions) -> Rollout:
+        """Full trajectories of a team: genomes (N, P), ic (xy (E, N, 2), heading (E, N))."""
+        genomes, (xy0, h0) = self._team(genomes), self._batch(*ic)
+        e = h0.shape[0]
+        traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
+                       np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e))
+        self._run(genomes, xy0, h0, traj.returns, traj.xy, traj.heading)
+        return traj
+
+    def returns(self, genomes: np.ndarray, ic: InitialConditions) -> np.ndarray:
+        """Per-episode team returns (E,) of a team genomes (N, P) from ic."""
+        genomes, (xy0, h0) = self._team(genomes), self._batch(*ic)
+        out = np.empty(h0.shape[0])
+        self._run(genomes, xy0, h0, out, _NO_XY, _NO_HEADING)
+        return out
+
+    def evaluate(self, genomes: np.ndarray, ic: InitialConditions) -> float:
+        """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5)."""
+        return float(self.returns(genomes, ic).mean())
+
+    def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading):
+        kernel.rollout(genomes, xy0, h0, self.poi_xy, self._type, self._coupling, self._value,
+                       self.steps, self.hidden, float(self.sensor_range), float(self.obs_radius),
+                       float(self.v_max), self.w_max, returns, traj_xy, traj_heading)
+
+    def _team(self, genomes):
+        genomes = np.ascontiguousarray(genomes, dtype=np.float64)
+        if genomes.shape != (self.n_rovers, self.n_params):
+            raise ValueError(f"genomes must have shape ({self.n_rovers}, {self.n_params}), got {genomes.shape}")
+        return genomes
+
+    def _batch(self, xy, heading):
+        xy = np.ascontiguousarray(xy, dtype=np.float64)
+        heading = np.ascontiguousarray(heading, dtype=np.float64)
+        if xy.shape[-2:] != (self.n_rovers, 2) or heading.shape != xy.shape[:-1]:
+            raise ValueError(f"expected xy (..., {self.n_rovers}, 2) and heading (..., {self.n_rovers}), "
+                             f"got {xy.shape} and {heading.shape}")
+        return xy, heading
+
+
+def make_world(setup: str = "solo", **overrides) -> World:
+    """A :class:`World` with the defaults of ``conf/`` (``setup/<setup>.yaml``, ``env/rovers.yaml``,
+    ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)``."""
+    path = CONF_DIR / "setup" / f"{setup}.yaml"
+    if not path.exists():
+        options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))
+        raise errors.ConfigError("setup", setup, "unknown setup; allowed: " + ", ".join(options))
+    cfg = OmegaConf.create({"setup": OmegaConf.load(path), "env": OmegaConf.load(CONF_DIR / "env" / "rovers.yaml"),
+                            "policy": OmegaConf.load(CONF_DIR / "policy" / "mlp.yaml")})
+    for key, val in overrides.items():
+        section = "setup" if key in ("coupling", "value", "name") else "policy" if key == "hidden" else "env"
+        cfg[section][key] = val
+    return World.from_config(cfg)

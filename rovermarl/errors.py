@@ -1,0 +1,71 @@
+"""Configuration errors: one line that names the key, the value and what is allowed."""
+
+from __future__ import annotations
+
+
+class ConfigError(ValueError):
+    """A config value is invalid. ``str(err)`` is ``"key=value: requirement"``."""
+
+    def __init__(self, key: str, value, requirement: str):
+        self.key, self.value, self.requirement = key, value, requirement
+        super().__init__(f"{key}={_show(value)}: {requirement}")
+
+    def under(self, group: str) -> ConfigError:
+        """The same error with its key prefixed by the config group, e.g. ``gamma`` -> ``k.gamma``."""
+        return ConfigError(f"{group}.{self.key}", self.value, self.requirement)
+
+
+def _show(value) -> str:
+    if isinstance(value, str):
+        return value if value and not any(ch.isspace() for ch in value) else repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_show(v) for v in value) + "]"
+    return str(value)
+
+
+def integer(key: str, value, lo: int | None = None, hi: int | None = None) -> int:
+    """``value`` as an int in [lo, hi], else :class:`ConfigError`."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}")
+    if (lo is not None and value < lo) or (hi is not None and value > hi):
+        raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}")
+    return int(value)
+
+
+def number(key: str, value, lo: float | None = None, hi: float | None = None, *,
+           lo_open: bool = False, hi_open: bool = False) -> float:
+    """``value`` as a finite float in the given (optionally open) interval, else :class:`ConfigError`."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value
+    ok = ok and abs(value) != float("inf")
+    if ok and lo is not None:
+        ok = value > lo if lo_open else value >= lo
+    if ok and hi is not None:
+        ok = value < hi if hi_open else value <= hi
+    if not ok:
+        if lo is not None and hi is not None:
+            where = f" in {'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+        elif lo is not None:
+            where = f" {'>' if lo_open else '>='} {lo}"
+        elif hi is not None:
+            where = f" {'<' if hi_open else '<='} {hi}"
+        else:
+            where = ""
+        raise ConfigError(key, value, f"must be a finite number{where}")
+    return float(value)
+
+
+def choice(key: str, value, options) -> str:
+    """``value`` if it is one of ``options``, else :class:`ConfigError`."""
+    if value not in options:
+        raise ConfigError(key, value, "must be one of " + ", ".join(map(str, options)))
+    return value
+
+
+def _range(lo, hi) -> str:
+    if lo is not None and hi is not None:
+        return f" in {lo}..{hi}"
+    if lo is not None:
+        return f" >= {lo}"
+    if hi is not None:
+        return f" <= {hi}"
+    return ""

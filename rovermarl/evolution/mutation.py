@@ -1,0 +1,35 @@
+"""Mutation operators. Each is built from ``conf/mutation/*.yaml`` and called as ``op(genome, rng)``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rovermarl import errors
+
+
+class MixedMutation:
+    """SPEC section 6: Gaussian on all parameters with prob ``p_gaussian``, else a uniform reset of
+    ``floor(uniform_fraction * P)`` distinct parameters to ``U(low, high)``. No clipping."""
+
+    def __init__(self, p_gaussian: float = 0.2, sigma: float = 0.1, uniform_fraction: float = 0.25,
+                 low: float = -2.0, high: float = 2.0):
+        self.p_gaussian = errors.number("p_gaussian", p_gaussian, 0, 1)
+        self.sigma = errors.number("sigma", sigma, 0)
+        self.uniform_fraction = errors.number("uniform_fraction", uniform_fraction, 0, 1)
+        self.low = errors.number("low", low)
+        self.high = errors.number("high", high)
+        if self.high <= self.low:
+            raise errors.ConfigError("high", high, f"must be greater than low={low}")
+
+    def n_reset(self, n_params: int) -> int:
+        """How many parameters a uniform mutation resets (164 of 658 by default)."""
+        return int(np.floor(self.uniform_fraction * n_params))
+
+    def __call__(self, genome: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """A mutated copy of ``genome`` (P,)."""
+        if rng.random() < self.p_gaussian:
+            return genome + rng.normal(0.0, self.sigma, genome.shape[0])
+        child = genome.copy()
+        idx = rng.choice(genome.shape[0], self.n_reset(genome.shape[0]), replace=False)
+        child[idx] = rng.uniform(self.low, self.high, idx.shape[0])
+        return child

@@ -1,0 +1,1 @@
+"""Result files: curves, genomes, initial conditions and the job summary."""
