@@ -1,0 +1,90 @@
+"""Every config composes and instantiates; bad configs fail early with one line."""
+
+from pathlib import Path
+
+import pytest
+
+from rovermarl import train
+from rovermarl.config import group_names, quote_numeric_options, validate
+from rovermarl.env.world import CONF_DIR
+from rovermarl.evolution import build
+from tests.conftest import make_cfg, run_cli
+
+OPTIONS = sorted((g, p.stem) for g in group_names() for p in (CONF_DIR / g).glob("*.yaml"))
+
+
+def test_groups_are_the_documented_ones():
+    assert group_names() == {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel"}
+    assert {o for g, o in OPTIONS if g == "k"} == {"1", "2", "3", "4", "adaptive"}
+
+
+@pytest.mark.parametrize("group, option", OPTIONS)
+def test_every_option_composes_and_instantiates(group, option):
+    cfg = make_cfg(f"{group}={option}")
+    validate(cfg)
+    parts = build(cfg)
+    assert parts.world.n_params == 658
+    if group == "k":
+        assert parts.selector.choose(__import__("numpy").random.default_rng(0)) in parts.selector.arms
+
+
+def test_defaults():
+    cfg = make_cfg()
+    assert (cfg.seeds, cfg.seed, cfg.generations) == (16, 0, 5000)
+    parts = build(cfg)
+    assert type(parts.selector).__name__ == "FixedK" and parts.selector.value == 1
+    assert parts.mutation.sigma == 0.1 and parts.mutation.p_gaussian == 0.2
+    assert not parts.selection.strict and type(parts.team).__name__ == "HeterogeneousTeam"
+
+
+def test_quote_numeric_options():
+    groups = {"k", "setup"}
+    assert quote_numeric_options(["-m", "k=1,2,4,adaptive", "setup=solo,duo", "seeds=4"], groups) == \
+        ["-m", "k='1','2','4',adaptive", "setup=solo,duo", "seeds=4"]
+    assert quote_numeric_options(["k=3", "k.value=3", "+k=2", "k='2'", "k=choice(1,2)"], groups) == \
+        ["k='3'", "k.value=3", "+k='2'", "k='2'", "k=choice(1,2)"]
+
+
+BAD = [
+    (["k=5"], "k=5"),
+    (["mutation.sigma=-1"], "mutation.sigma=-1"),
+    (["k=adaptive", "k.gamma=0"], "k.gamma=0"),
+    (["setup=trio"], "setup=trio"),
+    (["seeds=0"], "seeds=0"),
+    (["generations=-3"], "generations=-3"),
+]
+
+
+@pytest.mark.parametrize("argv, key", BAD)
+def test_validation_examples_give_one_line_and_nonzero_exit(argv, key, tmp_path):
+    proc = run_cli(*argv, f"hydra.run.dir={tmp_path}/run", cwd=tmp_path)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2, proc.stderr
+    assert len(lines) == 1 and lines[0].startswith(f"rovermarl.train: error: {key}:"), proc.stderr
+    assert "Traceback" not in proc.stderr + proc.stdout
+    assert not (tmp_path / "run").exists() and not (tmp_path / "outputs").exists()
+
+
+@pytest.mark.parametrize("argv, key", BAD + [
+    (["-m", "k=1,2,7", "setup=solo,duo"], "k=7"),
+    (["k=adaptive", "k.arms=[1,5]"], "k.arms=[1, 5]"),
+    (["setup.coupling=[1,1,1,1,1,1,1,1,1,9]"], "setup.coupling[9]=9"),
+    (["k=1,2"], "k=1,2"),
+    (["+foo=1"], "foo=1"),
+    (["seeds=abc"], "seeds=abc"),
+])
+def test_bad_config_never_starts_ray(argv, key, monkeypatch, capsys):
+    import ray
+
+    def no_ray(*a, **kw):
+        raise AssertionError("Ray started for a bad config")
+    monkeypatch.setattr(ray, "init", no_ray)
+    with pytest.raises(SystemExit) as exc:
+        train.main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"rovermarl.train: error: {key}:"), err
+
+
+def test_conf_dir_is_the_top_level_conf():
+    assert CONF_DIR == Path(__file__).resolve().parents[1] / "conf"
