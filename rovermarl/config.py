@@ -143,3 +143,13 @@ def _value_of(key: str, job: list[str]):
 def _one_line(e: Exception) -> str:
     text = " ".join(str(e).split())
     return text.replace(" Set the environment variable HYDRA_FULL_ERROR=1 for a complete stack trace.", "")
+
+
+def compose_config(*overrides: str) -> DictConfig:
+    """The job config the CLI would compose for ``overrides`` (e.g. ``compose_config("k=2", "setup=duo")``)."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
+        return compose("config", overrides=quote_numeric_options(list(overrides)))

@@ -4,20 +4,13 @@ import sys
 from pathlib import Path
 
 import pytest
-from hydra import compose, initialize_config_dir
-from hydra.core.global_hydra import GlobalHydra
 
-from rovermarl.config import quote_numeric_options
-from rovermarl.env.world import CONF_DIR
+from rovermarl.config import compose_config
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def make_cfg(*overrides: str):
-    """Compose the job config as the CLI would (numeric group options quoted)."""
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(str(CONF_DIR), version_base="1.3"):
-        return compose("config", overrides=quote_numeric_options(list(overrides)))
+make_cfg = compose_config
 
 
 def run_cli(*args: str, module: str = "rovermarl.train", cwd: Path | None = None, env: dict | None = None,
