@@ -29,20 +29,39 @@ def hydra_main(cfg: DictConfig) -> float:
     return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
 
 
-def check(argv: list[str]) -> None:
+def check(argv: list[str]) -> list[DictConfig]:
     """Compose and validate every job of ``argv`` (already quoted); raises ConfigError."""
     from hydra._internal.utils import get_args_parser
     args = get_args_parser().parse_args(argv)
     if args.help or args.hydra_help or args.cfg or args.info or args.shell_completion:
-        return  # Hydra's own informational modes
-    for cfg in compose_jobs(args.overrides, args.multirun, args.config_name or "config", args.config_dir):
+        return []  # Hydra's own informational modes
+    cfgs = compose_jobs(args.overrides, args.multirun, args.config_name or "config", args.config_dir)
+    for cfg in cfgs:
         validate(cfg)
+    return cfgs
+
+
+def connect(cfgs: list[DictConfig]) -> None:
+    """Start (or join) the one Ray instance that all jobs of this invocation share, if any job uses Ray."""
+    on_ray = [c for c in cfgs if c.parallel.backend == "ray"]
+    if not on_ray:
+        return
+    from rovermarl.parallel.ray_backend import ensure_ray
+    try:
+        ensure_ray(on_ray[0].ray)
+    except Exception as e:  # noqa: BLE001  (Ray raises several types; all end the same way)
+        where = on_ray[0].ray.address or "local"
+        first = (str(e).strip().splitlines() or [type(e).__name__])[0]
+        hint = (" A cluster started by `ray start` (Ray >= 2.59) checks a token: on the head node use "
+                "ray.address=auto, elsewhere export RAY_AUTH_MODE=token and the cluster's token."
+                if on_ray[0].ray.address and "nothing answers" not in first else "")
+        raise ConfigError("ray.address", where, f"cannot start or join Ray: {first}.{hint}") from None
 
 
 def main(argv: list[str] | None = None) -> None:
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
-        check(argv)
+        connect(check(argv))
     except ConfigError as e:
         print(f"rovermarl.train: error: {e}", file=sys.stderr)
         sys.exit(2)
