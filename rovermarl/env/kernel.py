@@ -17,8 +17,10 @@ TWO_PI = 2.0 * math.pi
 def _wrap(a):
     """Angle wrapped to [-pi, pi)."""
     r = a - TWO_PI * math.floor((a + math.pi) / TWO_PI)
-    if r >= math.pi:
+    if r >= math.pi:  # rounding in the floor can land one ulp outside
         r -= TWO_PI
+    elif r < -math.pi:
+        r += TWO_PI
     return r
 
 
