@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import re
 from pathlib import Path
 
@@ -76,9 +77,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
                  config_dir: str | None = None) -> list[DictConfig]:
     """Compose the config of every job an invocation would launch (sweeps expanded as Hydra's basic
     sweeper does). Composition problems raise :class:`~rovermarl.errors.ConfigError`."""
-    from hydra import compose, initialize_config_dir
     from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
-    from hydra.core.global_hydra import GlobalHydra
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
 
@@ -97,8 +96,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
     if config_dir:
         jobs = [_with_searchpath(job, config_dir) for job in jobs]
     cfgs = []
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
+    with _composer() as compose:
         for job in jobs:
             try:
                 cfgs.append(compose(config_name, overrides=job))
@@ -147,9 +145,16 @@ def _one_line(e: Exception) -> str:
 
 def compose_config(*overrides: str) -> DictConfig:
     """The job config the CLI would compose for ``overrides`` (e.g. ``compose_config("k=2", "setup=duo")``)."""
+    with _composer() as compose:
+        return compose("config", overrides=quote_numeric_options(list(overrides)))
+
+
+@contextlib.contextmanager
+def _composer():
+    """Hydra's compose function, initialised on ``conf/``."""
     from hydra import compose, initialize_config_dir
     from hydra.core.global_hydra import GlobalHydra
 
     GlobalHydra.instance().clear()
     with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
-        return compose("config", overrides=quote_numeric_options(list(overrides)))
+        yield compose

@@ -49,7 +49,7 @@ def connect(cfgs: list[DictConfig]) -> None:
     from rovermarl.parallel.ray_backend import ensure_ray
     try:
         ensure_ray(on_ray[0].ray)
-    except Exception as e:  # noqa: BLE001  (Ray raises several types; all end the same way)
+    except Exception as e:  # Ray raises several types; all end the same way
         where = on_ray[0].ray.address or "local"
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]
         hint = (" A cluster started by `ray start` (Ray >= 2.59) checks a token: on the head node use "

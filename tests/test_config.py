@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rovermarl import train
@@ -25,7 +26,7 @@ def test_every_option_composes_and_instantiates(group, option):
     parts = build(cfg)
     assert parts.world.n_params == 658
     if group == "k":
-        assert parts.selector.choose(__import__("numpy").random.default_rng(0)) in parts.selector.arms
+        assert parts.selector.choose(np.random.default_rng(0)) in parts.selector.arms
 
 
 def test_defaults():

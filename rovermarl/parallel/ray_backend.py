@@ -12,7 +12,6 @@ import ray
 from rovermarl.evolution import Run, evolve
 from rovermarl.parallel import plain
 
-log = logging.getLogger(__name__)
 _POOL: list = []
 
 
