@@ -108,17 +108,19 @@ def act(genome, obs, hidden, h_buf):
 
 @njit(cache=True)
 def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden,
-            sensor_range, obs_radius, v_max, w_max, returns, traj_xy, traj_heading):
+            sensor_range, obs_radius, v_max, w_max, returns, traj_xy, traj_heading, final_xy):
     """Run E episodes of T steps for one team.
 
     genomes (N, P) one row per rover; xy0 (E, N, 2), heading0 (E, N) -> returns (E,) written in place.
     If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are
-    recorded there; pass arrays with a zero-sized first axis to skip recording.
+    recorded there; pass arrays with a zero-sized first axis to skip recording. Likewise the final
+    positions go to ``final_xy`` (E, N, 2) unless its first axis is zero-sized.
     Each step: all rovers sense, all act, then each turns by ``a1 * w_max`` and moves
     ``(a0 + 1) / 2 * v_max`` along its new heading.
     """
     n_ep, n = heading0.shape
     record = traj_xy.shape[0] == n_ep
+    keep_final = final_xy.shape[0] == n_ep
     d = 3 * poi_xy.shape[0] + 2 * n
     obs = np.empty((n, d))
     h_buf = np.empty(hidden)
@@ -147,6 +149,8 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
             if record:
                 traj_xy[e, t + 1] = xy
                 traj_heading[e, t + 1] = heading
+        if keep_final:
+            final_xy[e] = xy
         returns[e] = team_return(xy, poi_xy, coupling, value, obs_radius)
 
 

@@ -17,6 +17,7 @@ CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
 
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
+_NO_FINAL = np.empty((0, 1, 2))
 
 InitialConditions = tuple[np.ndarray, np.ndarray]  # xy (E, N, 2), heading (E, N)
 
@@ -176,21 +177,27 @@ class World:
         self._run(genomes, xy0, h0, traj.returns, traj.xy, traj.heading)
         return traj
 
-    def returns(self, genomes: np.ndarray, ic: InitialConditions) -> np.ndarray:
-        """Per-episode team returns (E,) of a team genomes (N, P) from ic."""
+    def returns(self, genomes: np.ndarray, ic: InitialConditions, final_xy: np.ndarray | None = None) -> np.ndarray:
+        """Per-episode team returns (E,) of a team genomes (N, P) from ic.
+
+        If given, ``final_xy`` (E, N, 2) receives the rovers' final positions (at no extra cost).
+        """
         genomes, (xy0, h0) = self._team(genomes), self._batch(*ic)
         out = np.empty(h0.shape[0])
-        self._run(genomes, xy0, h0, out, _NO_XY, _NO_HEADING)
+        if final_xy is not None and final_xy.shape != xy0.shape:
+            raise ValueError(f"final_xy must have shape {xy0.shape}, got {final_xy.shape}")
+        self._run(genomes, xy0, h0, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
         return out
 
-    def evaluate(self, genomes: np.ndarray, ic: InitialConditions) -> float:
-        """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5)."""
-        return float(self.returns(genomes, ic).mean())
+    def evaluate(self, genomes: np.ndarray, ic: InitialConditions, final_xy: np.ndarray | None = None) -> float:
+        """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
+        return float(self.returns(genomes, ic, final_xy).mean())
 
-    def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading):
+    def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
         kernel.rollout(genomes, xy0, h0, self.poi_xy, self._type, self._coupling, self._value,
                        self.steps, self.hidden, float(self.sensor_range), float(self.obs_radius),
-                       float(self.v_max), self.w_max, returns, traj_xy, traj_heading)
+                       float(self.v_max), self.w_max, returns, traj_xy, traj_heading,
+                       _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
         genomes = np.ascontiguousarray(genomes, dtype=np.float64)
