@@ -12,8 +12,9 @@ from rovermarl import errors
 from rovermarl.env.world import CONF_DIR
 from rovermarl.evolution import build
 
-TOP_LEVEL = {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel",
-             "seeds", "seed", "generations", "levels", "ray"}
+TOP_LEVEL = {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record",
+             "seeds", "seed", "generations", "levels", "ray", "resume", "checkpoint"}
+NOT_IN_DIR_NAMES = ("parallel", "ray", "record", "checkpoint", "resume", "hydra")  # settings that keep results
 _INT = re.compile(r"[+-]?\d+")
 _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
 
@@ -32,9 +33,20 @@ def validate(cfg: DictConfig) -> None:
         raise errors.ConfigError("levels", levels, "must be a list of score levels")
     for i, lv in enumerate(levels):
         errors.number(f"levels[{i}]", lv)
+    _flag("resume", cfg.get("resume"))
+    _keys("checkpoint", cfg.get("checkpoint"), {"every"})
+    errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
+    rec = cfg.get("record")
+    _keys("record", rec, {"rerun", "behaviour", "occupancy", "every", "steps"})
+    for key in ("rerun", "behaviour", "occupancy", "steps"):
+        _flag(f"record.{key}", rec.get(key))
+    errors.integer("record.every", rec.get("every"), 1)
     par = cfg.parallel
+    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards"}, {"workers", "retries", "ic_shards"})
     errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
     errors.integer("parallel.chunk", par.get("chunk"), 1)
+    errors.integer("parallel.retries", par.get("retries", 0), 0)
+    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1)
     if par.get("workers") is not None:
         errors.integer("parallel.workers", par.workers, 1)
     address = cfg.ray.get("address")
@@ -43,6 +55,23 @@ def validate(cfg: DictConfig) -> None:
     if cfg.ray.get("num_cpus") is not None:
         errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
     build(cfg)
+
+
+def _flag(key: str, value) -> None:
+    if not isinstance(value, bool):
+        raise errors.ConfigError(key, value, "must be true or false")
+
+
+def _keys(section: str, node, allowed: set[str], optional: set[str] = frozenset()) -> None:
+    if not isinstance(node, DictConfig):
+        raise errors.ConfigError(section, node, "must be a mapping with keys " + ", ".join(sorted(allowed)))
+    for key in node:
+        if key not in allowed and key != "_target_":
+            raise errors.ConfigError(f"{section}.{key}", node.get(key), "unknown key; allowed: " +
+                                     ", ".join(sorted(allowed)))
+    for key in allowed - optional:
+        if key not in node:
+            raise errors.ConfigError(f"{section}.{key}", None, "missing")
 
 
 def group_names(conf_dir: Path = CONF_DIR) -> set[str]:
@@ -71,6 +100,17 @@ def quote_numeric_options(argv: list[str], groups: set[str] | None = None) -> li
 def dirname(override_dirname: str) -> str:
     """Readable sweep subdir from Hydra's override_dirname: ``k='1',setup=solo`` -> ``k=1,setup=solo``."""
     return override_dirname.replace("'", "").replace('"', "").replace("/", "_") or "default"
+
+
+def sweepname(task_overrides) -> str:
+    """Sweep dir name from the command's overrides, minus settings that do not change results:
+    ``["k='1','2',adaptive", "setup=solo,duo", "parallel=serial"]`` -> ``k=1,2,adaptive__setup=solo,duo``."""
+    keep = []
+    for item in task_overrides:
+        key = str(item).lstrip("+~").partition("=")[0]
+        if key.split(".")[0].split("@")[0] not in NOT_IN_DIR_NAMES:
+            keep.append(dirname(str(item)))
+    return "__".join(sorted(keep)) or "default"
 
 
 def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",

@@ -1,40 +1,88 @@
-"""One Hydra job: run its seeds (serially or on Ray), write every run's files and the job summary."""
+"""One Hydra job: run its seeds (serially or on Ray), checkpoint them, write every run's files and the summary.
+
+A relaunch of the same job resumes: finished runs (``run.json`` of the same config) are skipped, unfinished
+ones continue from their last good checkpoint, so the results equal those of an uninterrupted job.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import json
 import logging
 import time
+from functools import partial
 from pathlib import Path
 
 from omegaconf import DictConfig
 from tqdm.auto import tqdm
 
 from rovermarl.config import validate
-from rovermarl.parallel import run_seeds
-from rovermarl.record.outputs import save_run, summarize, write_json
+from rovermarl.env import World
+from rovermarl.parallel import plain, run_records
+from rovermarl.record import checkpoint
+from rovermarl.record.checkpoint import RunRecord
+from rovermarl.record.outputs import finished, load_score, run_dir, save_run, summarize, write_json
+from rovermarl.record.rerun_log import write_rrd
 
 log = logging.getLogger("rovermarl")
-GROUPS = ("setup", "env", "policy", "mutation", "selection", "k", "team", "parallel")
+GROUPS = ("setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record")
+NOT_RESULTS = ("seeds", "seed", "levels", "parallel", "ray", "record", "checkpoint", "resume")
+
+
+def config_hash(cfg: DictConfig) -> str:
+    """Hash of everything that determines a run's numbers (not seeds count, backend, recording or paths)."""
+    job = {k: v for k, v in plain(cfg).items() if k not in NOT_RESULTS}
+    return hashlib.sha256(json.dumps(job, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | None = None) -> dict:
     """Run ``cfg.seeds`` independent runs into ``job_dir``; returns the summary (also summary.json)."""
     validate(cfg)
+    job_dir, key = Path(job_dir), config_hash(cfg)
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
-    results: dict[int, dict] = {}
-    t0 = time.perf_counter()
-    with tqdm(total=len(seeds) * cfg.generations, desc=name, unit="gen", disable=None, leave=False,
-              dynamic_ncols=True) as bar:
-        def on_result(result: dict) -> None:
-            save_run(job_dir, result)
-            results[result["seed"]] = result
-            bar.set_postfix_str(f"runs {len(results)}/{len(seeds)}")
+    scores, records = {}, []
+    for seed in seeds:
+        out = run_dir(job_dir, seed)
+        if cfg.resume and finished(out, key):
+            scores[seed] = load_score(out)
+            continue
+        rec = checkpoint.resume(out / "checkpoint.bin", key, log.warning) if cfg.resume else None
+        if rec is not None:
+            log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
+        records.append(rec or RunRecord(seed, cfg.generations))
+    if scores:
+        log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))
+    summary_path = job_dir / "summary.json"
+    if not records and summary_path.exists():
+        return json.loads(summary_path.read_text())
 
-        run_seeds(cfg, seeds, on_result, bar.update)
+    world = World.from_config(cfg)
+    rrd = partial(_rrd, world=world, record=cfg.record) if cfg.record.rerun else None
+    every = max(cfg.checkpoint.every, 1)
+    t0 = time.perf_counter()
+    start = sum(rec.generation for rec in records)
+    with tqdm(total=sum(rec.generations for rec in records), initial=start, desc=name, unit="gen", disable=None,
+              leave=False, dynamic_ncols=True) as bar:
+        def on_chunk(rec: RunRecord, advanced: int) -> None:
+            bar.update(advanced)
+            out = run_dir(job_dir, rec.seed)
+            if rec.done:
+                save_run(job_dir, rec.result(), key, rrd)
+                checkpoint.remove(out / "checkpoint.bin")
+                scores[rec.seed] = rec.score
+                bar.set_postfix_str(f"runs {len(scores)}/{len(seeds)}")
+            elif rec.generation // every > (rec.generation - advanced) // every:
+                rec.save(out / "checkpoint.bin", key)
+
+        run_records(cfg, records, on_chunk)
     wall = time.perf_counter() - t0
-    summary = summarize(choices or {}, seeds, results, list(cfg.levels), wall,
-                        team_evals=len(seeds) * (cfg.generations + 1))
-    write_json(Path(job_dir) / "summary.json", summary)
+    summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
+                        team_evals=sum(rec.generations for rec in records) - start + len(records))
+    write_json(summary_path, summary)
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
-             summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"])
+             summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _rrd(path: Path, result: dict, world: World, record) -> None:
+    write_rrd(path, result, world, every=record.every, steps=record.steps, recording_id=f"seed_{result['seed']:03d}")

@@ -6,14 +6,16 @@ a bad config exits with status 2 and one line on stderr.
 
 from __future__ import annotations
 
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from rovermarl.config import compose_jobs, dirname, quote_numeric_options, validate
+from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname, validate
 from rovermarl.env.world import CONF_DIR
 from rovermarl.errors import ConfigError
 from rovermarl.job import GROUPS, run_job
@@ -29,16 +31,37 @@ def hydra_main(cfg: DictConfig) -> float:
     return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
 
 
-def check(argv: list[str]) -> list[DictConfig]:
-    """Compose and validate every job of ``argv`` (already quoted); raises ConfigError."""
+def check(argv: list[str]) -> tuple[list[DictConfig], list[str]]:
+    """Compose and validate every job of ``argv`` (already quoted); raises ConfigError.
+
+    Returns the job configs and ``argv`` with the output dir made explicit: ``outputs/multirun/<overrides>``
+    (``outputs/run/<overrides>`` without -m), so relaunching the same command finds and resumes its results.
+    """
     from hydra._internal.utils import get_args_parser
     args = get_args_parser().parse_args(argv)
     if args.help or args.hydra_help or args.cfg or args.info or args.shell_completion:
-        return []  # Hydra's own informational modes
+        return [], argv  # Hydra's own informational modes
     cfgs = compose_jobs(args.overrides, args.multirun, args.config_name or "config", args.config_dir)
     for cfg in cfgs:
         validate(cfg)
-    return cfgs
+    key = "hydra.sweep.dir" if args.multirun else "hydra.run.dir"
+    given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key + "=")]
+    out = given[-1] if given else f"outputs/{'multirun' if args.multirun else 'run'}/{sweepname(args.overrides)}"
+    writable(key, Path(out))
+    return cfgs, argv if given else [*argv, f"{key}='{out}'"]
+
+
+def writable(key: str, path: Path) -> None:
+    """Fail early, in one line, on an output dir that cannot be created or written (creates nothing)."""
+    existing = path.absolute()
+    while not existing.exists():
+        existing = existing.parent
+    if not existing.is_dir():
+        raise ConfigError(key, str(path), f"cannot write there: {existing} is not a directory")
+    try:                                        # a real probe: access() says yes to root on read-only mounts
+        os.rmdir(tempfile.mkdtemp(prefix=".rovermarl-probe-", dir=existing))
+    except OSError as e:
+        raise ConfigError(key, str(path), f"cannot write there: {existing}: {e.strerror or e}") from None
 
 
 def connect(cfgs: list[DictConfig]) -> None:
@@ -61,7 +84,8 @@ def connect(cfgs: list[DictConfig]) -> None:
 def main(argv: list[str] | None = None) -> None:
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
-        connect(check(argv))
+        cfgs, argv = check(argv)
+        connect(cfgs)
     except ConfigError as e:
         print(f"rovermarl.train: error: {e}", file=sys.stderr)
         sys.exit(2)

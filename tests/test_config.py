@@ -15,7 +15,7 @@ OPTIONS = sorted((g, p.stem) for g in group_names() for p in (CONF_DIR / g).glob
 
 
 def test_groups_are_the_documented_ones():
-    assert group_names() == {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel"}
+    assert group_names() == {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record"}
     assert {o for g, o in OPTIONS if g == "k"} == {"1", "2", "3", "4", "adaptive"}
 
 

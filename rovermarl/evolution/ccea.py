@@ -11,6 +11,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import errors
 from rovermarl.env import World
+from rovermarl.record.events import Recorder
 
 
 @dataclass
@@ -72,10 +73,13 @@ class History:
         probs = selector.probs
         self.probs = None if probs is None else np.full((generations, len(probs)), np.nan)
 
-    def arrays(self) -> dict[str, np.ndarray]:
-        out = {"score": self.score, "k": self.k, "accepted": self.accepted, "child_score": self.child_score}
+    def arrays(self, start: int = 0, stop: int | None = None) -> dict[str, np.ndarray]:
+        """Generations [start, stop): per-generation arrays, and ``score`` after each of them."""
+        stop = len(self.k) if stop is None else stop
+        out = {"score": self.score[start + 1:stop + 1], "k": self.k[start:stop], "accepted": self.accepted[start:stop],
+               "child_score": self.child_score[start:stop]}
         if self.probs is not None:
-            out["probs"] = self.probs
+            out["probs"] = self.probs[start:stop]
         return out
 
 
@@ -83,39 +87,68 @@ class Run:
     """One independent run from one integer seed.
 
     The seed's ``SeedSequence`` spawns four independent streams: initial conditions, initial genomes,
-    mutation (which rovers, which changes) and selector.
+    mutation (which rovers, which changes) and selector. :meth:`state` / :meth:`load` capture and
+    restore everything the next generation depends on, so a run resumed from a state is bit-identical
+    to one that never stopped.
     """
 
-    def __init__(self, cfg, seed: int):
+    def __init__(self, cfg, seed: int, parts: Parts | None = None):
         cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
         self.seed = int(seed)
-        self.parts = p = build(cfg)
+        self.parts = p = parts or build(cfg)
         s_ic, s_init, s_mut, s_sel = np.random.SeedSequence(self.seed).spawn(4)
         self.ic = p.world.initial_conditions(np.random.default_rng(s_ic))
         self.rng_mut = np.random.default_rng(s_mut)
         self.rng_sel = np.random.default_rng(s_sel)
+        self.recorder = Recorder(p.world, self.ic, cfg.get("record") or {})
+        self.evaluate = self.local_evaluate
         self.parents = p.team.init(p.world.n_params, cfg.policy.init_low, cfg.policy.init_high,
                                    np.random.default_rng(s_init))
-        self.f_parent = p.world.evaluate(p.team.genomes(self.parents), self.ic)
         self.generations = int(cfg.generations)
         self.generation = 0
         self.history = History(self.generations, p.selector)
+        self.f_parent = self.evaluate(p.team.genomes(self.parents))
         self.history.score[0] = self.f_parent
+        self.recorder.start(self.parents_genomes, self.f_parent)
+
+    def local_evaluate(self, genomes: np.ndarray) -> float:
+        """Score of a team genomes (N, P) on this run's initial conditions, in this process."""
+        return self.parts.world.evaluate(genomes, self.ic, self.recorder.child_xy)
+
+    @property
+    def parents_genomes(self) -> np.ndarray:
+        return self.parts.team.genomes(self.parents)
 
     @property
     def done(self) -> bool:
         return self.generation >= self.generations
 
+    def state(self) -> dict:
+        """What the next generation depends on (plain arrays, ints, floats and dicts)."""
+        return {"generation": self.generation, "parents": self.parents.copy(), "f_parent": self.f_parent,
+                "rng_mut": self.rng_mut.bit_generator.state, "rng_sel": self.rng_sel.bit_generator.state,
+                "selector": self.parts.selector.state_dict(), "recorder": self.recorder.state_dict()}
+
+    def load(self, state: dict) -> None:
+        """Continue from a :meth:`state` of the same config and seed."""
+        self.generation = int(state["generation"])
+        self.parents = np.array(state["parents"], dtype=np.float64)
+        self.f_parent = float(state["f_parent"])
+        self.rng_mut.bit_generator.state = state["rng_mut"]
+        self.rng_sel.bit_generator.state = state["rng_sel"]
+        self.parts.selector.load_state_dict(state["selector"])
+        self.recorder.load_state_dict(state["recorder"])
+
     def result(self) -> dict:
         """Plain arrays of the run (safe to send between processes)."""
-        return {"seed": self.seed, "generation": self.generation, **self.history.arrays(),
-                "genomes": self.parts.team.genomes(self.parents), "ic_xy": self.ic[0], "ic_heading": self.ic[1]}
+        return {"seed": self.seed, "generation": self.generation, "initial_score": self.history.score[0],
+                **self.history.arrays(), "genomes": self.parents_genomes, "ic_xy": self.ic[0], "ic_heading": self.ic[1],
+                **self.recorder.drain()}
 
 
 def evolve(run: Run, generations: int) -> None:
     """Advance ``run`` by up to ``generations`` generations of CC-(1+1)-ES."""
-    world, team, mutate, accept, selector = (run.parts.world, run.parts.team, run.parts.mutation,
-                                             run.parts.selection, run.parts.selector)
+    team, mutate, accept, selector = run.parts.team, run.parts.mutation, run.parts.selection, run.parts.selector
     h = run.history
     for g in range(run.generation, min(run.generation + generations, run.generations)):
         if h.probs is not None:
@@ -123,10 +156,13 @@ def evolve(run: Run, generations: int) -> None:
         k = selector.choose(run.rng_sel)                                 # 1. choose k
         chosen = team.pick(k, run.rng_mut)                               # 2. k distinct rovers
         children = team.mutate(run.parents, chosen, mutate, run.rng_mut)  # 3. mutate them
-        f_child = world.evaluate(team.genomes(children), run.ic)         # 4. evaluate the team
+        f_child = run.evaluate(team.genomes(children))                   # 4. evaluate the team
         accepted = accept(f_child, run.f_parent)                         # 5. all k children or none
         selector.update(k, f_child, run.f_parent)                        # 6. reward the selector
-        if accepted:
+        if accepted:                                                     # 7. record behaviour changes
+            run.recorder.accepted(g + 1, team.genomes(children), f_child, f_child != run.f_parent)
             run.parents, run.f_parent = children, f_child
         h.k[g], h.accepted[g], h.child_score[g], h.score[g + 1] = k, accepted, f_child, run.f_parent
         run.generation = g + 1
+    if run.done:
+        run.recorder.finish(run.generation, run.parents_genomes, run.f_parent)

@@ -1,5 +1,6 @@
-"""Seeds on Ray actors. One embedded Ray (or a joined cluster) serves every job of a multirun, and
-the actor pool is reused across jobs. Only integers and plain config dicts cross to the workers."""
+"""Runs as Ray tasks. One embedded Ray (or a joined cluster) serves every job of a multirun. Only plain
+config dicts, integer seeds and run states (arrays and numbers) cross to the workers; the driver writes
+every file."""
 
 from __future__ import annotations
 
@@ -9,30 +10,14 @@ import socket
 
 import ray
 
-from rovermarl.evolution import Run, evolve
-from rovermarl.parallel import plain
-
-_POOL: list = []
+from rovermarl.parallel import advance, plain
 
 
-@ray.remote(num_cpus=1)
-class SeedWorker:
-    """Holds the runs it is advancing; each call advances one run by a chunk of generations."""
-
-    def __init__(self):
-        self.runs: dict[int, Run] = {}
-
-    def advance(self, cfg: dict, seed: int, n: int):
-        """Returns ``(seed, generations advanced, result or None)``; the result once the run is done."""
-        run = self.runs.get(seed)
-        if run is None:
-            run = self.runs[seed] = Run(cfg, seed)
-        before = run.generation
-        evolve(run, n)
-        if run.done:
-            del self.runs[seed]
-            return seed, run.generation - before, run.result()
-        return seed, run.generation - before, None
+@ray.remote(num_cpus=1, retry_exceptions=False)
+def advance_task(cfg: dict, seed: int, state: dict | None, n: int) -> dict:
+    """:func:`rovermarl.parallel.advance` as a Ray task. If its worker process dies, Ray reruns it
+    (``parallel.retries`` times) from the same inputs, so the chunk's numbers do not change."""
+    return advance(cfg, seed, state, n)
 
 
 def ensure_ray(ray_cfg) -> None:
@@ -58,31 +43,26 @@ def _probe(address: str, timeout: float = 5.0) -> None:
         raise ConnectionError(f"nothing answers at {host}:{port} ({e.strerror or e})") from None
 
 
-def _workers(n: int) -> list:
-    while len(_POOL) < n:
-        _POOL.append(SeedWorker.remote())
-    return _POOL[:n]
-
-
-def run_ray(cfg, seeds, on_result, on_progress) -> None:
+def run_ray(cfg, records, on_chunk) -> None:
+    """Advance the records on Ray, one chunk task per run in flight, at most one per worker slot."""
     ensure_ray(cfg.ray)
-    n_workers = cfg.parallel.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-    workers = _workers(min(n_workers, len(seeds)))
+    slots = cfg.parallel.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
     job_cfg = ray.put(plain(cfg))
     chunk = cfg.parallel.chunk
-    queue = list(seeds)
+    task = advance_task.options(max_retries=cfg.parallel.retries)
+    queue = [rec for rec in records if not rec.done]
     inflight = {}
-    for w in workers:
-        if queue:
-            inflight[w.advance.remote(job_cfg, queue.pop(0), chunk)] = w
+
+    def submit(rec):
+        inflight[task.remote(job_cfg, rec.seed, rec.state, chunk)] = rec
+
+    while queue and len(inflight) < slots:
+        submit(queue.pop(0))
     while inflight:
         [ref], _ = ray.wait(list(inflight), num_returns=1)
-        worker = inflight.pop(ref)
-        seed, advanced, result = ray.get(ref)
-        on_progress(advanced)
-        if result is None:
-            inflight[worker.advance.remote(job_cfg, seed, chunk)] = worker
-            continue
-        on_result(result)
-        if queue:
-            inflight[worker.advance.remote(job_cfg, queue.pop(0), chunk)] = worker
+        rec = inflight.pop(ref)
+        on_chunk(rec, rec.add(ray.get(ref)))
+        if not rec.done:
+            submit(rec)
+        elif queue:
+            submit(queue.pop(0))

@@ -6,6 +6,11 @@ Job dir layout::
     runs/seed_XXX/curve.npz               score (G+1), k (G), accepted (G), child_score (G), probs (G, K)
     runs/seed_XXX/genomes.npy             final team genomes (N, P)
     runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N)
+    runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
+    runs/seed_XXX/occupancy.npz           generation (M,), count (M, E, P) int8
+    runs/seed_XXX/run.rrd                 Rerun recording (see rovermarl.record.rerun_log)
+    runs/seed_XXX/run.json                written last: the run is finished (seed, generations, config hash)
+    runs/seed_XXX/checkpoint.bin          while the run is unfinished (see rovermarl.record.checkpoint)
 """
 
 from __future__ import annotations
@@ -43,16 +48,39 @@ def run_dir(job_dir: Path, seed: int) -> Path:
     return Path(job_dir) / "runs" / f"seed_{seed:03d}"
 
 
-def save_run(job_dir: Path, result: dict) -> Path:
-    """Write one finished run's files; returns its directory."""
+def save_run(job_dir: Path, result: dict, config_hash: str = "", write_rrd=None) -> Path:
+    """Write one finished run's files, ``run.json`` last; ``write_rrd(path, result)`` adds the recording."""
     out = run_dir(job_dir, result["seed"])
-    with atomic_open(out / "curve.npz") as f:
-        np.savez(f, **{k: result[k] for k in CURVE_KEYS if k in result})
+    _savez(out / "curve.npz", {k: result[k] for k in CURVE_KEYS if k in result})
     with atomic_open(out / "genomes.npy") as f:
         np.save(f, result["genomes"])
-    with atomic_open(out / "initial_conditions.npz") as f:
-        np.savez(f, xy=result["ic_xy"], heading=result["ic_heading"])
+    _savez(out / "initial_conditions.npz", {"xy": result["ic_xy"], "heading": result["ic_heading"]})
+    _savez(out / "behaviour.npz", {"generation": result["behaviour_generation"], "score": result["behaviour_score"],
+                                   "xy": result["behaviour_xy"]})
+    _savez(out / "occupancy.npz", {"generation": result["occupancy_generation"], "count": result["occupancy_count"]})
+    if write_rrd is not None:
+        write_rrd(out / "run.rrd", result)
+    write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
+                                  "final_score": float(result["score"][-1]), "config_hash": config_hash})
     return out
+
+
+def finished(out: Path, config_hash: str) -> bool:
+    """Whether ``out`` holds a finished run of the config with this hash."""
+    try:
+        return json.loads((Path(out) / "run.json").read_text()).get("config_hash") == config_hash
+    except (OSError, ValueError):
+        return False
+
+
+def load_score(out: Path) -> np.ndarray:
+    with np.load(Path(out) / "curve.npz") as z:
+        return z["score"]
+
+
+def _savez(path: Path, arrays: dict) -> None:
+    with atomic_open(path) as f:
+        np.savez(f, **arrays)
 
 
 def first_reaching(score: np.ndarray, level: float) -> int | None:
@@ -61,17 +89,17 @@ def first_reaching(score: np.ndarray, level: float) -> int | None:
     return int(hits[0]) if hits.size else None
 
 
-def summarize(choices: dict, seeds: list[int], results: dict[int, dict], levels, wall_time_s: float,
+def summarize(choices: dict, seeds: list[int], scores: dict[int, np.ndarray], levels, wall_time_s: float,
               team_evals: int) -> dict:
     """The job's summary: config choices, per-seed final scores and first generations reaching each level."""
-    final = {str(s): float(results[s]["score"][-1]) for s in seeds}
+    final = {str(s): float(scores[s][-1]) for s in seeds}
     return {
         "choices": choices,
         "seeds": list(seeds),
         "final_score": final,
         "median_final_score": float(np.median(list(final.values()))),
         "first_generation_reaching": {
-            str(lv): {str(s): first_reaching(results[s]["score"], lv) for s in seeds} for lv in levels},
+            str(lv): {str(s): first_reaching(scores[s], lv) for s in seeds} for lv in levels},
         "wall_time_s": wall_time_s,
         "team_evals": team_evals,
         "team_evals_per_s": team_evals / wall_time_s if wall_time_s > 0 else None,

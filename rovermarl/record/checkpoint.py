@@ -1,0 +1,166 @@
+"""The driver's record of each run, and its checkpoint files.
+
+A run advances in chunks (on Ray or in this process). Each chunk returns its slice of the history, its
+events and the run's compact state; :class:`RunRecord` stitches them together. Every ``checkpoint.every``
+generations the record is written to ``runs/seed_XXX/checkpoint.bin`` (the previous one is kept as
+``checkpoint.prev.bin``). A checkpoint file is one header line ``RMCKPT1 <sha256 of payload>`` followed
+by an ``.npz`` payload; a truncated or corrupt file fails the checksum and is reported by name.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from rovermarl.record.outputs import atomic_open
+
+MAGIC = b"RMCKPT1"
+EVENT_KEYS = ("behaviour_generation", "behaviour_score", "behaviour_xy", "occupancy_generation", "occupancy_count")
+HISTORY_KEYS = ("k", "accepted", "child_score", "probs")
+
+
+class CheckpointError(Exception):
+    """A checkpoint file that cannot be used (message names the file and what is wrong)."""
+
+
+class RunRecord:
+    """Everything the driver knows of one run: history (full length), events so far, and the state to resume."""
+
+    def __init__(self, seed: int, generations: int):
+        self.seed, self.generations = int(seed), int(generations)
+        self.generation = 0
+        self.state: dict | None = None
+        self.score = np.full(generations + 1, np.nan)
+        self.history: dict[str, np.ndarray] = {}
+        self.events: dict[str, list[np.ndarray]] = {key: [] for key in EVENT_KEYS}
+        self.extra: dict[str, np.ndarray] = {}                     # ic_xy, ic_heading, genomes
+
+    @property
+    def done(self) -> bool:
+        return self.generation >= self.generations
+
+    def add(self, chunk: dict) -> int:
+        """Apply one chunk returned by :func:`rovermarl.parallel.advance`; returns generations advanced."""
+        start, stop = chunk["start"], chunk["stop"]
+        if start != self.generation:
+            raise RuntimeError(f"seed {self.seed}: chunk starts at {start}, record is at {self.generation}")
+        if "initial_score" in chunk:
+            self.score[0] = chunk["initial_score"]
+        self.score[start + 1:stop + 1] = chunk["score"]
+        for key in HISTORY_KEYS:
+            if key in chunk:
+                if key not in self.history:
+                    tail = chunk[key].shape[1:]
+                    fill = np.nan if chunk[key].dtype.kind == "f" else 0
+                    self.history[key] = np.full((self.generations, *tail), fill, dtype=chunk[key].dtype)
+                self.history[key][start:stop] = chunk[key]
+        for key in EVENT_KEYS:
+            self.events[key].append(chunk[key])
+        for key in ("ic_xy", "ic_heading", "genomes"):
+            if key in chunk:
+                self.extra[key] = chunk[key]
+        self.state, self.generation = chunk["state"], stop
+        return stop - start
+
+    def result(self) -> dict:
+        """The finished run's arrays (what :func:`rovermarl.record.outputs.save_run` writes)."""
+        events = {key: np.concatenate(parts) for key, parts in self.events.items()}
+        return {"seed": self.seed, "score": self.score, **self.history, **events, **self.extra}
+
+    # ---- checkpoint files -----------------------------------------------------------------------
+    def save(self, path: Path, config_hash: str) -> None:
+        """Write atomically; the previous checkpoint is kept as ``<name>.prev``."""
+        arrays: dict[str, np.ndarray] = {"score": self.score, **self.history, **self.extra}
+        arrays |= {key: np.concatenate(parts) for key, parts in self.events.items()}
+        meta = {"seed": self.seed, "generations": self.generations, "generation": self.generation,
+                "config_hash": config_hash, "history_keys": sorted(self.history), "extra_keys": sorted(self.extra),
+                "state": _encode(self.state, arrays)}
+        buf = io.BytesIO()
+        np.savez(buf, _meta=np.array(json.dumps(meta)), **arrays)
+        payload = buf.getvalue()
+        path = Path(path)
+        with atomic_open(path.with_suffix(".tmp.bin")) as f:          # complete before touching the old ones
+            f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+        if path.exists():
+            os.replace(path, previous(path))
+        os.replace(path.with_suffix(".tmp.bin"), path)
+
+    @classmethod
+    def load(cls, path: Path, config_hash: str) -> RunRecord:
+        """Read and verify a checkpoint; raises :class:`CheckpointError` naming the file."""
+        path = Path(path)
+        try:
+            data = path.read_bytes()
+        except OSError as e:
+            raise CheckpointError(f"{path}: cannot read ({e.strerror})") from None
+        header, _, payload = data.partition(b"\n")
+        parts = header.split(b" ")
+        if len(parts) != 2 or parts[0] != MAGIC:
+            raise CheckpointError(f"{path}: not a rovermarl checkpoint (bad header)")
+        if hashlib.sha256(payload).hexdigest().encode() != parts[1]:
+            raise CheckpointError(f"{path}: checksum mismatch (truncated or corrupt, {len(data)} bytes)")
+        with np.load(io.BytesIO(payload)) as z:
+            arrays = {key: z[key] for key in z.files}
+        meta = json.loads(str(arrays.pop("_meta")))
+        if meta["config_hash"] != config_hash:
+            raise CheckpointError(f"{path}: written by a different config (hash {meta['config_hash'][:12]}, "
+                                  f"expected {config_hash[:12]})")
+        rec = cls(meta["seed"], meta["generations"])
+        rec.generation, rec.score = meta["generation"], arrays["score"]
+        rec.history = {key: arrays[key] for key in meta["history_keys"]}
+        rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
+        rec.events = {key: [arrays[key]] for key in EVENT_KEYS}
+        rec.state = _decode(meta["state"], arrays)
+        return rec
+
+
+def previous(path: Path) -> Path:
+    return Path(path).with_suffix(".prev.bin")
+
+
+def resume(path: Path, config_hash: str, warn) -> RunRecord | None:
+    """The newest good checkpoint at ``path`` (or its ``.prev``), or None; ``warn(msg)`` explains fallbacks."""
+    for candidate in (Path(path), previous(path)):
+        if not candidate.exists():
+            continue
+        try:
+            return RunRecord.load(candidate, config_hash)
+        except CheckpointError as e:
+            warn(f"{e}; ignoring it")
+    return None
+
+
+def remove(path: Path) -> None:
+    for p in (Path(path), previous(path)):
+        with contextlib.suppress(FileNotFoundError):
+            p.unlink()
+
+
+def _encode(obj, arrays: dict, prefix: str = "state"):
+    """JSON-able form of a state: arrays move into ``arrays`` under a path key."""
+    if isinstance(obj, np.ndarray):
+        arrays[prefix] = obj
+        return {"__array__": prefix}
+    if isinstance(obj, dict):
+        return {str(k): _encode(v, arrays, f"{prefix}/{k}") for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_encode(v, arrays, f"{prefix}/{i}") for i, v in enumerate(obj)]
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
+def _decode(obj, arrays: dict):
+    if isinstance(obj, dict):
+        if set(obj) == {"__array__"}:
+            return arrays[obj["__array__"]]
+        return {k: _decode(v, arrays) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_decode(v, arrays) for v in obj]
+    return obj

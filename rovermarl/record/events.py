@@ -1,0 +1,84 @@
+"""Behaviour events of one run, captured inside the generation loop (cheaply: only on accepted teams).
+
+- occupancy: how many rovers observe each POI at the end of each episode, ``count`` (E, P) int8. Logged at
+  generation 0 and whenever an accepted team changes it; the latest entry holds until the next one.
+- behaviour: the parent team's trajectories ``xy`` (E, T+1, N, 2) float32 at generation 0, at every accepted
+  generation that changed the score, and at the last generation.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Recorder:
+    """Switches come from the ``record`` config group (``occupancy``, ``behaviour``; both on if absent)."""
+
+    def __init__(self, world, ic, cfg):
+        self.world, self.ic = world, ic
+        self.occupancy_on = bool(cfg.get("occupancy", True))
+        self.behaviour_on = bool(cfg.get("behaviour", True))
+        shape = ic[0].shape                                            # (E, N, 2)
+        self.child_xy = np.empty(shape) if self.occupancy_on else None  # the evaluation writes final positions here
+        self.parent_xy = np.empty(shape) if self.occupancy_on else None
+        self.count = None
+        self.last_behaviour = -1
+        self._behaviour: list[tuple[int, float, np.ndarray]] = []
+        self._occupancy: list[tuple[int, np.ndarray]] = []
+
+    def occupancy(self, final_xy: np.ndarray) -> np.ndarray:
+        """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
+        w = self.world
+        dx = w.poi_xy[None, None, :, 0] - final_xy[:, :, None, 0]
+        dy = w.poi_xy[None, None, :, 1] - final_xy[:, :, None, 1]
+        return (np.sqrt(dx * dx + dy * dy) <= w.obs_radius).sum(axis=1).astype(np.int8)
+
+    def start(self, genomes: np.ndarray, score: float) -> None:
+        """Generation 0: the initial team was just evaluated (its final positions are in ``child_xy``)."""
+        self.accepted(0, genomes, score, True)
+
+    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
+        """The team evaluated last (genomes (N, P)) became the parent at ``generation``."""
+        if self.occupancy_on:
+            self.child_xy, self.parent_xy = self.parent_xy, self.child_xy
+            count = self.occupancy(self.parent_xy)
+            if self.count is None or not np.array_equal(count, self.count):
+                self.count = count
+                self._occupancy.append((generation, count))
+        if self.behaviour_on and score_changed:
+            self._log_behaviour(generation, genomes, score)
+
+    def finish(self, generation: int, genomes: np.ndarray, score: float) -> None:
+        """The run ended at ``generation``: log the final team's trajectories once."""
+        if self.behaviour_on and self.last_behaviour != generation:
+            self._log_behaviour(generation, genomes, score)
+
+    def _log_behaviour(self, generation, genomes, score):
+        self._behaviour.append((generation, score, self.world.rollout(genomes, self.ic).xy.astype(np.float32)))
+        self.last_behaviour = generation
+
+    def state_dict(self) -> dict:
+        return {"parent_xy": None if self.parent_xy is None else self.parent_xy.copy(),
+                "last_behaviour": self.last_behaviour}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.last_behaviour = int(state["last_behaviour"])
+        if self.occupancy_on and state["parent_xy"] is not None:
+            self.parent_xy = np.array(state["parent_xy"], dtype=np.float64)
+            self.count = self.occupancy(self.parent_xy)
+        self._behaviour.clear()
+        self._occupancy.clear()
+
+    def drain(self) -> dict[str, np.ndarray]:
+        """Events logged since the last drain, as arrays (see module doc); clears them."""
+        e, n = self.ic[1].shape
+        steps, p = self.world.steps, self.world.n_pois
+        b, o = self._behaviour, self._occupancy
+        out = {"behaviour_generation": np.array([x[0] for x in b], dtype=np.int64),
+               "behaviour_score": np.array([x[1] for x in b], dtype=np.float64),
+               "behaviour_xy": np.array([x[2] for x in b], dtype=np.float32).reshape(len(b), e, steps + 1, n, 2),
+               "occupancy_generation": np.array([x[0] for x in o], dtype=np.int64),
+               "occupancy_count": np.array([x[1] for x in o], dtype=np.int8).reshape(len(o), e, p)}
+        b.clear()
+        o.clear()
+        return out
