@@ -13,15 +13,15 @@ import time
 from functools import partial
 from pathlib import Path
 
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
 from rovermarl.config import validate
-from rovermarl.env import World
+from rovermarl.evolution import build
 from rovermarl.parallel import plain, run_records
 from rovermarl.record import checkpoint
 from rovermarl.record.checkpoint import RunRecord
-from rovermarl.record.outputs import finished, load_score, run_dir, save_run, summarize, write_json
+from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
 from rovermarl.record.rerun_log import write_rrd
 
 log = logging.getLogger("rovermarl")
@@ -56,8 +56,12 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     if not records and summary_path.exists():
         return json.loads(summary_path.read_text())
 
-    world = World.from_config(cfg)
-    rrd = partial(_rrd, world=world, record=cfg.record) if cfg.record.rerun else None
+    parts = build(cfg)
+    if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
+        job_dir.mkdir(parents=True, exist_ok=True)
+        with atomic_open(job_dir / "config.yaml", "w") as f:
+            f.write(OmegaConf.to_yaml(plain(cfg)))
+    rrd = partial(_rrd, world=parts.world, record=cfg.record, arms=parts.selector.arms) if cfg.record.rerun else None
     every = max(cfg.checkpoint.every, 1)
     t0 = time.perf_counter()
     start = sum(rec.generation for rec in records)
@@ -84,5 +88,6 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     return summary
 
 
-def _rrd(path: Path, result: dict, world: World, record) -> None:
-    write_rrd(path, result, world, every=record.every, steps=record.steps, recording_id=f"seed_{result['seed']:03d}")
+def _rrd(path: Path, result: dict, world, record, arms) -> None:
+    write_rrd(path, result, world, every=record.every, steps=record.steps, recording_id=f"seed_{result['seed']:03d}",
+              arms=arms)

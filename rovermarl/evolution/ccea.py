@@ -137,7 +137,7 @@ class Run:
         self.rng_mut.bit_generator.state = state["rng_mut"]
         self.rng_sel.bit_generator.state = state["rng_sel"]
         self.parts.selector.load_state_dict(state["selector"])
-        self.recorder.load_state_dict(state["recorder"])
+        self.recorder.load_state_dict(state["recorder"], self.parents_genomes, self.f_parent)
 
     def result(self) -> dict:
         """Plain arrays of the run (safe to send between processes)."""

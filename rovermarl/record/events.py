@@ -3,7 +3,8 @@
 - occupancy: how many rovers observe each POI at the end of each episode, ``count`` (E, P) int8. Logged at
   generation 0 and whenever an accepted team changes it; the latest entry holds until the next one.
 - behaviour: the parent team's trajectories ``xy`` (E, T+1, N, 2) float32 at generation 0, at every accepted
-  generation that changed the score, and at the last generation.
+  generation that changed the score (and at the generation before it when the team changed since the last
+  entry, so every score change has its exact before and after), and at the last generation.
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ class Recorder:
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
         self.count = None
         self.last_behaviour = -1
+        self.moved = False                                             # parent changed since the last behaviour entry
+        self.parents = None                                            # (N, P) genomes of the current parent team
         self._behaviour: list[tuple[int, float, np.ndarray]] = []
         self._occupancy: list[tuple[int, np.ndarray]] = []
 
@@ -45,8 +48,14 @@ class Recorder:
             if self.count is None or not np.array_equal(count, self.count):
                 self.count = count
                 self._occupancy.append((generation, count))
-        if self.behaviour_on and score_changed:
-            self._log_behaviour(generation, genomes, score)
+        if self.behaviour_on:
+            if score_changed:
+                if self.moved:                                          # the exact team before this update
+                    self._log_behaviour(generation - 1, self.parents, self.parent_score)
+                self._log_behaviour(generation, genomes, score)
+            else:
+                self.moved = True
+            self.parents, self.parent_score = genomes, score
 
     def finish(self, generation: int, genomes: np.ndarray, score: float) -> None:
         """The run ended at ``generation``: log the final team's trajectories once."""
@@ -55,14 +64,16 @@ class Recorder:
 
     def _log_behaviour(self, generation, genomes, score):
         self._behaviour.append((generation, score, self.world.rollout(genomes, self.ic).xy.astype(np.float32)))
-        self.last_behaviour = generation
+        self.last_behaviour, self.moved = generation, False
 
     def state_dict(self) -> dict:
         return {"parent_xy": None if self.parent_xy is None else self.parent_xy.copy(),
-                "last_behaviour": self.last_behaviour}
+                "last_behaviour": self.last_behaviour, "moved": self.moved}
 
-    def load_state_dict(self, state: dict) -> None:
-        self.last_behaviour = int(state["last_behaviour"])
+    def load_state_dict(self, state: dict, genomes: np.ndarray, score: float) -> None:
+        """Restore after :meth:`state_dict`; ``genomes`` (N, P) and ``score`` are the current parent team's."""
+        self.parents, self.parent_score = genomes, score
+        self.last_behaviour, self.moved = int(state["last_behaviour"]), bool(state["moved"])
         if self.occupancy_on and state["parent_xy"] is not None:
             self.parent_xy = np.array(state["parent_xy"], dtype=np.float64)
             self.count = self.occupancy(self.parent_xy)

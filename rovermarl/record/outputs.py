@@ -24,6 +24,8 @@ from pathlib import Path
 import numpy as np
 
 CURVE_KEYS = ("score", "k", "accepted", "child_score", "probs")
+_UMASK = os.umask(0)
+os.umask(_UMASK)
 
 
 @contextlib.contextmanager
@@ -33,6 +35,7 @@ def atomic_open(path: Path, mode: str = "wb"):
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.chmod(tmp, 0o666 & ~_UMASK)                    # mkstemp makes 0600; results should read like any file
         with os.fdopen(fd, mode) as f:
             yield f
             f.flush()

@@ -5,7 +5,7 @@ Entities (2-D scene units are world units):
 - static ``world/pois`` (POI centres, coloured by coupling), ``world/poi_radius`` (circles of the observation
   radius), ``world/start_boxes`` (the rovers' start squares);
 - timeline ``generation``: ``metrics/score``, ``metrics/child_score``, ``metrics/k``, ``metrics/accepted``,
-  ``bandit/k=<arm>`` (bandit selectors), ``occupancy/count`` (tensor episode x POI) and ``occupancy/poi_<j>``
+  ``bandit/k<arm>`` (bandit selectors), ``occupancy/count`` (tensor episode x POI) and ``occupancy/poi_<j>``
   (mean rovers at POI j over episodes) at each change, ``episodes/<e>/trajectories`` (one line per rover) at
   generation 0, every accepted score change and the last generation;
 - timeline ``step``: ``episodes/<e>/rovers``, the final team's positions along each episode.
@@ -28,8 +28,12 @@ def rover_colors(n: int) -> np.ndarray:
     return ROVER_COLORS[np.arange(n) % len(ROVER_COLORS)]
 
 
-def write_rrd(path: Path, result: dict, world, every: int = 1, steps: bool = True, recording_id: str = "") -> Path:
-    """Write ``result`` (a finished run's arrays) to ``path`` atomically; returns the path."""
+def write_rrd(path: Path, result: dict, world, every: int = 1, steps: bool = True, recording_id: str = "",
+              arms=None) -> Path:
+    """Write ``result`` (a finished run's arrays) to ``path`` atomically; returns the path.
+
+    ``arms`` are the k values of a bandit's probabilities (default 1..K).
+    """
     import rerun as rr
 
     path = Path(path)
@@ -38,7 +42,7 @@ def write_rrd(path: Path, result: dict, world, every: int = 1, steps: bool = Tru
     rec.save(str(tmp))
     try:
         _scene(rec, rr, world)
-        _metrics(rec, rr, result, every)
+        _metrics(rec, rr, result, every, arms)
         _occupancy(rec, rr, result)
         _trajectories(rec, rr, result, steps)
         rec.flush()
@@ -69,17 +73,19 @@ def _series(rec, rr, entity, generations, values) -> None:
                      columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
 
 
-def _metrics(rec, rr, result, every) -> None:
+def _metrics(rec, rr, result, every, arms) -> None:
     score = result["score"]
     gens = np.arange(len(score))[::every]
     _series(rec, rr, "metrics/score", gens, score[::every])
+    if "k" not in result:
+        return
     after = gens[gens >= 1]                                       # generation g's child: index g - 1
     _series(rec, rr, "metrics/child_score", after, result["child_score"][after - 1])
     _series(rec, rr, "metrics/k", after, result["k"][after - 1])
     _series(rec, rr, "metrics/accepted", after, result["accepted"][after - 1])
     if "probs" in result:
-        for a, arm in enumerate(result.get("arms", range(1, result["probs"].shape[1] + 1))):
-            _series(rec, rr, f"bandit/k={arm}", after, result["probs"][after - 1, a])
+        for a, arm in enumerate(arms or range(1, result["probs"].shape[1] + 1)):
+            _series(rec, rr, f"bandit/k{arm}", after, result["probs"][after - 1, a])
 
 
 def _occupancy(rec, rr, result) -> None:

@@ -1,0 +1,1 @@
+"""Analysis of finished sweeps: paper-style figures (:mod:`rovermarl.analysis.figures`)."""

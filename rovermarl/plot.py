@@ -1,0 +1,91 @@
+"""Figures: ``python -m rovermarl.plot SWEEP_DIR [--out DIR] [--threshold SETUP=VALUE ...] [--format png pdf]``.
+
+Draws the paper's figures from a finished (or partly finished) sweep, or from one job dir, into
+``SWEEP_DIR/figures/`` (see :mod:`rovermarl.analysis.figures`). Bad input exits with status 2 and one line on
+stderr. :class:`PlotCallback` does the same at the end of a Hydra multirun and never fails the sweep.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from hydra.experimental.callback import Callback
+
+from rovermarl.analysis.figures import FORMATS, PlotError, plot_sweep
+
+log = logging.getLogger("rovermarl.plot")
+PROG = "rovermarl.plot"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, no usage block
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
+def _threshold(text: str) -> tuple[str, float]:
+    """``duo=5`` -> ("duo", 5.0); a bare ``5`` applies to every setup ("*")."""
+    setup, _, value = text.rpartition("=")
+    try:
+        return setup or "*", float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected SETUP=NUMBER or NUMBER, got {text!r}") from None
+
+
+def parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Draw the paper's figures (PNG/PDF) from a sweep dir or one job dir.")
+    p.add_argument("path", type=Path, help="sweep dir (from `rovermarl.train -m`) or one job dir")
+    p.add_argument("--out", type=Path, default=None, help="output dir (default: PATH/figures)")
+    p.add_argument("--threshold", type=_threshold, action="append", default=[], metavar="SETUP=VALUE",
+                   help="score whose first reaching is marked by quartile lines (default duo=5, solo=4)")
+    p.add_argument("--format", nargs="+", choices=("png", "pdf", "svg"), default=list(FORMATS), dest="formats")
+    p.add_argument("--update-run", type=Path, default=None, metavar="RUN_DIR",
+                   help="run dir (runs/seed_XXX) whose behaviour.npz the update figure shows")
+    p.add_argument("--update-gen", type=int, default=None, metavar="G",
+                   help="logged generation shown 'after' in the update figure (default: first score rise)")
+    return p
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    args = parser().parse_args(argv)
+    if args.update_gen is not None and args.update_run is None:
+        parser().error("--update-gen needs --update-run")
+    logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
+    try:
+        index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
+                           args.update_gen, log=log)
+    except PlotError as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        sys.exit(2)
+    out = args.out if args.out is not None else args.path / "figures"
+    n_files = sum(len(f["files"]) for f in index["figures"])
+    print(f"{PROG}: {len(index['figures'])} figures ({n_files} files) in {out}")
+
+
+class PlotCallback(Callback):
+    """Hydra callback: draw the figures into ``<sweep dir>/figures`` when a multirun ends.
+
+    Register it in ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``.
+    Plotting problems are logged as a warning and never raised, so a finished sweep is never marked failed.
+    """
+
+    def __init__(self, formats: Sequence[str] = FORMATS, thresholds: dict | None = None) -> None:
+        self.formats = list(formats)
+        self.thresholds = dict(thresholds or {})
+
+    def on_multirun_end(self, config, **kwargs) -> None:
+        sweep = "?"
+        try:
+            sweep = Path(str(config.hydra.sweep.dir))
+            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats)
+            log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
+        except Exception as e:  # figures are a by-product; never fail a finished sweep
+            log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, e)
+
+
+if __name__ == "__main__":
+    main()
