@@ -25,6 +25,10 @@ def validate(cfg: DictConfig) -> None:
         if key not in TOP_LEVEL and key != "hydra":
             raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
                                      ", ".join(sorted(TOP_LEVEL)))
+    _keys("setup", cfg.get("setup"), {"name", "coupling", "value"}, {"name", "coupling", "value"})  # World: missing
+    _keys("env", cfg.get("env"), None)  # World names unknown env keys
+    _keys("policy", cfg.get("policy"), {"hidden", "init_low", "init_high"})
+    _keys("ray", cfg.get("ray"), {"address", "num_cpus"}, {"address", "num_cpus"})
     errors.integer("seeds", cfg.get("seeds"), 1)
     errors.integer("seed", cfg.get("seed"), 0)
     errors.integer("generations", cfg.get("generations"), 1)
@@ -41,7 +45,7 @@ def validate(cfg: DictConfig) -> None:
     for key in ("rerun", "behaviour", "occupancy", "steps"):
         _flag(f"record.{key}", rec.get(key))
     errors.integer("record.every", rec.get("every"), 1)
-    par = cfg.parallel
+    par = cfg.get("parallel")
     _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards"}, {"workers", "retries", "ic_shards"})
     errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
     errors.integer("parallel.chunk", par.get("chunk"), 1)
@@ -62,9 +66,13 @@ def _flag(key: str, value) -> None:
         raise errors.ConfigError(key, value, "must be true or false")
 
 
-def _keys(section: str, node, allowed: set[str], optional: set[str] = frozenset()) -> None:
+def _keys(section: str, node, allowed: set[str] | None, optional: set[str] = frozenset()) -> None:
+    """``node`` must be a mapping; with ``allowed``, of those keys only (all but ``optional`` required)."""
     if not isinstance(node, DictConfig):
-        raise errors.ConfigError(section, node, "must be a mapping with keys " + ", ".join(sorted(allowed)))
+        keys = " with keys " + ", ".join(sorted(allowed)) if allowed else ""
+        raise errors.ConfigError(section, node, f"must be a mapping{keys}")
+    if allowed is None:
+        return
     for key in node:
         if key not in allowed and key != "_target_":
             raise errors.ConfigError(f"{section}.{key}", node.get(key), "unknown key; allowed: " +
@@ -133,16 +141,39 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
             key, _, value = sweeps[0].input_line.partition("=")
             raise errors.ConfigError(key, dirname(value), "is a sweep; add -m (--multirun) to run several jobs")
         jobs = [list(argv)]
+    for job in jobs:
+        _check_group_values(job)
     if config_dir:
+        if not Path(config_dir).is_dir():
+            raise errors.ConfigError("--config-dir", config_dir, "no such directory")
         jobs = [_with_searchpath(job, config_dir) for job in jobs]
     cfgs = []
     with _composer() as compose:
         for job in jobs:
             try:
                 cfgs.append(compose(config_name, overrides=job))
-            except HydraException as e:
-                raise _composition_error(e, job) from None
+            except (HydraException, ValueError, TypeError) as e:  # Hydra raises the last two on odd overrides
+                raise _composition_error(e, job, config_name) from None
     return cfgs
+
+
+def _check_group_values(job: list[str]) -> None:
+    """Each override has a key, and a config group override names options (Hydra fails obscurely otherwise)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    groups = group_names()
+    for o in OverridesParser.create().parse_overrides(job):
+        if o.is_delete():
+            continue
+        if not o.key_or_group:
+            raise errors.ConfigError("override", o.input_line, "has no key; expected KEY=VALUE")
+        group = o.key_or_group.split("@")[0]
+        value = o.value()
+        names = value if isinstance(value, list) else [value]
+        if group in groups and not all(isinstance(v, str) for v in names):
+            options = ", ".join(sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")))
+            hint = f" (quote a number: {group}='{value}')" if isinstance(value, int) else ""
+            raise errors.ConfigError(group, value, f"must name an option of the group: {options}{hint}")
 
 
 def _with_searchpath(job: list[str], config_dir: str) -> list[str]:
@@ -153,7 +184,7 @@ def _with_searchpath(job: list[str], config_dir: str) -> list[str]:
     return [*job, f"hydra.searchpath=[{path}]"]
 
 
-def _composition_error(e: Exception, job: list[str]) -> errors.ConfigError:
+def _composition_error(e: Exception, job: list[str], config_name: str = "config") -> errors.ConfigError:
     from hydra.errors import MissingConfigException
     if isinstance(e, MissingConfigException) and e.missing_cfg_file and e.options is not None:
         group, _, option = str(e.missing_cfg_file).rpartition("/")
@@ -162,8 +193,10 @@ def _composition_error(e: Exception, job: list[str]) -> errors.ConfigError:
             note = " (a fixed k must be at most env.n_rovers; k.value=K sets any k on a fixed option)"
         return errors.ConfigError(group, option, "no such option; allowed: " + ", ".join(e.options) + note)
     msg = _one_line(e)
-    m = re.search(r"Could not override '([^']+)'", msg)
-    key = m.group(1) if m else "override"
+    if isinstance(e, MissingConfigException) and "primary config" in msg:
+        return errors.ConfigError("--config-name", config_name, "no such config in conf/ (or --config-dir)")
+    m = re.search(r"Could not override '([^']+)'|Error merging override ([^=\s]+)|Multiple values for ([^\s.]+)", msg)
+    key = next((g for g in m.groups() if g), "override") if m else "override"
     if re.search(r"Key '([^']+)' is not in struct|To append to your config use", msg):
         return errors.ConfigError(key, _value_of(key, job), "unknown key; check the spelling, or add it with "
                                   f"+{key}=... if a plug-in needs it")

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,9 +32,12 @@ def _threshold(text: str) -> tuple[str, float]:
     """``duo=5`` -> ("duo", 5.0); a bare ``5`` applies to every setup ("*")."""
     setup, _, value = text.rpartition("=")
     try:
-        return setup or "*", float(value)
+        number = float(value)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected SETUP=NUMBER or NUMBER, got {text!r}") from None
+        number = math.nan
+    if not math.isfinite(number):
+        raise argparse.ArgumentTypeError(f"expected SETUP=NUMBER or NUMBER (a finite number), got {text!r}")
+    return setup or "*", number
 
 
 def parser() -> argparse.ArgumentParser:

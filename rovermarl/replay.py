@@ -17,7 +17,9 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import yaml
 from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 
 class ReplayError(Exception):
@@ -92,6 +94,11 @@ def open_viewer(rrd: Path, viewer: bool = True) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(prog="rovermarl.replay", description=__doc__.splitlines()[0])
+
+    def error(message: str):  # one line, no usage block
+        print(f"rovermarl.replay: error: {message}", file=sys.stderr)
+        sys.exit(2)
+    p.error = error
     p.add_argument("path", type=Path)
     p.add_argument("--seed", type=int, help="which run of a job dir (default: the first)")
     p.add_argument("--resim", action="store_true", help="re-simulate the final genomes and record a new .rrd")
@@ -112,8 +119,9 @@ def main(argv: list[str] | None = None) -> None:
             if not rrd.exists():
                 raise ReplayError(f"{target}: has no run.rrd (recorded with record.rerun=false?); try --resim")
         open_viewer(rrd, viewer=not a.no_viewer)
-    except (ReplayError, OSError, ValueError) as e:
-        print(f"rovermarl.replay: error: {e}", file=sys.stderr)
+    except (ReplayError, OSError, ValueError, KeyError, yaml.YAMLError, OmegaConfBaseException) as e:
+        what = "" if isinstance(e, (ReplayError, OSError)) else f"{a.path}: unreadable run or job files: "
+        print(f"rovermarl.replay: error: {what}{' '.join(str(e).split())}", file=sys.stderr)
         sys.exit(2)
 
 
