@@ -6,6 +6,7 @@ a bad config exits with status 2 and one line on stderr.
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import tempfile
@@ -38,7 +39,14 @@ def check(argv: list[str]) -> tuple[list[DictConfig], list[str]]:
     (``outputs/run/<overrides>`` without -m), so relaunching the same command finds and resumes its results.
     """
     from hydra._internal.utils import get_args_parser
-    args = get_args_parser().parse_args(argv)
+    parser = get_args_parser()
+    parser.exit_on_error = False
+    try:
+        args, unknown = parser.parse_known_args(argv)
+    except argparse.ArgumentError as e:
+        raise ConfigError(e.argument_name or "argument", " ".join(argv), e.message) from None
+    if unknown:
+        raise ConfigError("option", unknown[0], "unrecognized; see --help (overrides are KEY=VALUE)")
     if args.help or args.hydra_help or args.cfg or args.info or args.shell_completion:
         return [], argv  # Hydra's own informational modes
     cfgs = compose_jobs(args.overrides, args.multirun, args.config_name or "config", args.config_dir)
@@ -69,6 +77,8 @@ def connect(cfgs: list[DictConfig]) -> None:
     on_ray = [c for c in cfgs if c.parallel.backend == "ray"]
     if not on_ray:
         return
+    import ray
+
     from rovermarl.parallel.ray_backend import ensure_ray
     try:
         ensure_ray(on_ray[0].ray)
@@ -79,6 +89,10 @@ def connect(cfgs: list[DictConfig]) -> None:
                 "ray.address=auto, elsewhere export RAY_AUTH_MODE=token and the cluster's token."
                 if on_ray[0].ray.address and "nothing answers" not in first else "")
         raise ConfigError("ray.address", where, f"cannot start or join Ray: {first}.{hint}") from None
+    cpus = int(ray.cluster_resources().get("CPU", 0))
+    for c in on_ray:
+        if c.parallel.get("ic_shards", 1) > cpus:      # each shard actor holds a CPU for the whole run
+            raise ConfigError("parallel.ic_shards", c.parallel.ic_shards, f"must be at most the {cpus} CPUs of Ray")
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -22,8 +22,10 @@ OnChunk = Callable[[RunRecord, int], None]
 _PARTS: dict[str, object] = {}                                      # per process: built parts of each config
 
 
-def advance(cfg: dict, seed: int, state: dict | None, n: int) -> dict:
+def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluator=None) -> dict:
     """Advance run ``seed`` by up to ``n`` generations from ``state`` (None: from its start).
+
+    ``evaluator(run)``, if given, returns the team-evaluation function to use instead of local evaluation.
 
     Returns the chunk: ``start``, ``stop``, the history of generations [start, stop), the events logged
     in them, the new ``state``; plus ``initial_score`` and the initial conditions when starting, and the
@@ -32,6 +34,8 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int) -> dict:
     run = Run(cfg, seed, parts=_parts(cfg))
     if state is not None:
         run.load(state)
+    if evaluator is not None:
+        run.evaluate = evaluator(run)
     start = run.generation
     events = run.recorder.drain() if state is None else None          # generation 0's events
     evolve(run, n)
@@ -64,6 +68,9 @@ def run_records(cfg: DictConfig, records: list[RunRecord], on_chunk: OnChunk) ->
     """Advance every record to its end; ``on_chunk(record, advanced)`` runs in this process after each chunk."""
     if cfg.parallel.backend == "serial":
         run_serial(cfg, records, on_chunk)
+    elif cfg.parallel.get("ic_shards", 1) > 1:
+        from rovermarl.parallel.shards import run_sharded
+        run_sharded(cfg, records, on_chunk)
     else:
         from rovermarl.parallel.ray_backend import run_ray
         run_ray(cfg, records, on_chunk)

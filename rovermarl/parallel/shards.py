@@ -1,0 +1,68 @@
+"""Initial-condition shards: each team evaluation's E episodes split over S Ray actors (``parallel.ic_shards=S``).
+
+The generation loop stays in the driver; every evaluation sends the team to S actors, each rolls out its slice
+of episodes, and the per-episode returns are concatenated in order before the mean, so scores are bit-identical
+to local evaluation. It pays off only when one evaluation is heavy (see ``benchmarks/scaling.py``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import ray
+from omegaconf import OmegaConf
+
+from rovermarl.env import World
+from rovermarl.parallel import advance, plain
+from rovermarl.parallel.ray_backend import ensure_ray
+
+
+@ray.remote(num_cpus=1)
+class ShardActor:
+    """Rolls out one slice of a run's initial conditions: xy (e, N, 2), heading (e, N)."""
+
+    def __init__(self, cfg: dict):
+        self.world = World.from_config(OmegaConf.create(cfg))
+        self.ic = None
+
+    def set_ic(self, xy: np.ndarray, heading: np.ndarray) -> None:
+        self.ic = (xy, heading)
+
+    def returns(self, genomes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """genomes (N, P) -> per-episode returns (e,), final positions (e, N, 2)."""
+        final = np.empty(self.ic[0].shape)
+        return self.world.returns(genomes, self.ic, final), final
+
+
+class ShardedEvaluator:
+    """``run.evaluate`` replacement: same signature and results as :meth:`Run.local_evaluate`."""
+
+    def __init__(self, actors: list, run):
+        self.actors, self.run = actors, run
+        bounds = np.linspace(0, run.ic[1].shape[0], len(actors) + 1).round().astype(int)
+        self.slices = list(zip(bounds[:-1], bounds[1:], strict=True))
+        ray.get([a.set_ic.remote(run.ic[0][lo:hi], run.ic[1][lo:hi]) for a, (lo, hi) in zip(actors, self.slices,
+                                                                                           strict=True)])
+
+    def __call__(self, genomes: np.ndarray) -> float:
+        ref = ray.put(np.ascontiguousarray(genomes))
+        parts = ray.get([a.returns.remote(ref) for a in self.actors])
+        returns = np.concatenate([r for r, _ in parts])
+        if self.run.recorder.child_xy is not None:
+            self.run.recorder.child_xy[...] = np.concatenate([f for _, f in parts])
+        return float(returns.mean())
+
+
+def run_sharded(cfg, records, on_chunk) -> None:
+    """Advance the records one after another, each evaluation split over ``parallel.ic_shards`` actors."""
+    ensure_ray(cfg.ray)
+    job = plain(cfg)
+    actors = [ShardActor.remote(job) for _ in range(cfg.parallel.ic_shards)]
+    try:
+        for rec in records:
+            while not rec.done:
+                chunk = advance(job, rec.seed, rec.state, cfg.parallel.chunk,
+                                evaluator=lambda run: ShardedEvaluator(actors, run))
+                on_chunk(rec, rec.add(chunk))
+    finally:
+        for a in actors:
+            ray.kill(a)
