@@ -191,7 +191,7 @@ class World:
 
     def evaluate(self, genomes: np.ndarray, ic: InitialConditions, final_xy: np.ndarray | None = None) -> float:
         """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
-        return float(self.returns(genomes, ic, final_xy).mean())
+        return score(self.returns(genomes, ic, final_xy))
 
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
         kernel.rollout(genomes, xy0, h0, self.poi_xy, self._type, self._coupling, self._value,
@@ -212,6 +212,11 @@ class World:
             raise ValueError(f"expected xy (..., {self.n_rovers}, 2) and heading (..., {self.n_rovers}), "
                              f"got {xy.shape} and {heading.shape}")
         return xy, heading
+
+
+def score(returns: np.ndarray) -> float:
+    """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead."""
+    return float(returns.sum()) / returns.shape[0]
 
 
 def make_world(setup: str = "solo", **overrides) -> World:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from rovermarl import errors
 
@@ -29,7 +30,19 @@ class MixedMutation:
         """A mutated copy of ``genome`` (P,)."""
         if rng.random() < self.p_gaussian:
             return genome + rng.normal(0.0, self.sigma, genome.shape[0])
+        m = self.n_reset(genome.shape[0])
         child = genome.copy()
-        idx = rng.choice(genome.shape[0], self.n_reset(genome.shape[0]), replace=False)
-        child[idx] = rng.uniform(self.low, self.high, idx.shape[0])
+        _reset_distinct(child, rng.random(m), rng.uniform(self.low, self.high, m))
         return child
+
+
+@njit(cache=True)
+def _reset_distinct(child, u, values):
+    """Set ``len(values)`` distinct entries of ``child`` (P,), chosen uniformly by a partial Fisher-Yates
+    shuffle driven by ``u`` (m,) in [0, 1), to ``values`` (m,), in place."""
+    n = child.shape[0]
+    perm = np.arange(n)
+    for i in range(values.shape[0]):
+        j = min(i + int(u[i] * (n - i)), n - 1)
+        perm[i], perm[j] = perm[j], perm[i]
+        child[perm[i]] = values[i]

@@ -41,7 +41,7 @@ class HeterogeneousTeam(Team):
         return self.n_agents
 
     def pick(self, k, rng):
-        return rng.choice(self.n_agents, k, replace=False)
+        return rng.permutation(self.n_agents)[:k]
 
     def genomes(self, parents):
         return parents

@@ -12,6 +12,7 @@ import ray
 from omegaconf import OmegaConf
 
 from rovermarl.env import World
+from rovermarl.env.world import score
 from rovermarl.parallel import advance, plain
 from rovermarl.parallel.ray_backend import ensure_ray
 
@@ -49,7 +50,7 @@ class ShardedEvaluator:
         returns = np.concatenate([r for r, _ in parts])
         if self.run.recorder.child_xy is not None:
             self.run.recorder.child_xy[...] = np.concatenate([f for _, f in parts])
-        return float(returns.mean())
+        return score(returns)
 
 
 def run_sharded(cfg, records, on_chunk) -> None:
