@@ -110,7 +110,7 @@ def main() -> None:
             rates[w].append(seed_parallel_rate(w, a.generations, a.seeds))
     seed_parallel = {w: {"team_evals_per_s": round(statistics.median(r), 1), "runs": [round(x, 1) for x in r]}
                      for w, r in rates.items()}
-    worlds = [(15, 16), (60, 16), (15, 256), (240, 16), (60, 256), (240, 256)]
+    worlds = [(15, 16), (60, 16), (15, 256), (240, 16), (60, 256), (120, 256), (240, 256)]
     rows = shard_costs(a.shards, worlds, a.budget)
     ray.shutdown()
     faster = [r["agent_steps_per_eval"] for r in rows if r["shard_over_local"] < 1.0]

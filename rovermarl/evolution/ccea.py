@@ -93,18 +93,18 @@ class Run:
     """
 
     def __init__(self, cfg, seed: int, parts: Parts | None = None):
-        cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
         self.seed = int(seed)
         self.parts = p = parts or build(cfg)
+        cfg = OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else cfg  # plain: cheap access
         s_ic, s_init, s_mut, s_sel = np.random.SeedSequence(self.seed).spawn(4)
         self.ic = p.world.initial_conditions(np.random.default_rng(s_ic))
         self.rng_mut = np.random.default_rng(s_mut)
         self.rng_sel = np.random.default_rng(s_sel)
         self.recorder = Recorder(p.world, self.ic, cfg.get("record") or {})
         self.evaluate = self.local_evaluate
-        self.parents = p.team.init(p.world.n_params, cfg.policy.init_low, cfg.policy.init_high,
+        self.parents = p.team.init(p.world.n_params, cfg["policy"]["init_low"], cfg["policy"]["init_high"],
                                    np.random.default_rng(s_init))
-        self.generations = int(cfg.generations)
+        self.generations = int(cfg["generations"])
         self.generation = 0
         self.history = History(self.generations, p.selector)
         self.f_parent = self.evaluate(p.team.genomes(self.parents))

@@ -45,8 +45,8 @@ class ShardedEvaluator:
                                                                                            strict=True)])
 
     def __call__(self, genomes: np.ndarray) -> float:
-        ref = ray.put(np.ascontiguousarray(genomes))
-        parts = ray.get([a.returns.remote(ref) for a in self.actors])
+        genomes = np.ascontiguousarray(genomes)                         # small: sent inline with each call
+        parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
         if self.run.recorder.child_xy is not None:
             self.run.recorder.child_xy[...] = np.concatenate([f for _, f in parts])
