@@ -3,7 +3,7 @@
 Prints one JSON line: wall times measured alternately, their medians and ``overhead`` = default / off - 1
 (the target is <= 0.10), plus the size of the files written per run.
 
-    python benchmarks/recording.py [--setup duo] [--k 1] [--generations 5000] [--seeds 4] [--repeats 3]
+    python benchmarks/recording.py [--setup duo] [--k 1] [--generations 20000] [--seeds 2] [--repeats 3]
 """
 
 from __future__ import annotations
@@ -30,8 +30,8 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--setup", default="duo")
     p.add_argument("--k", default="1")
-    p.add_argument("--generations", type=int, default=5000)
-    p.add_argument("--seeds", type=int, default=4)
+    p.add_argument("--generations", type=int, default=20000, help="the config default")
+    p.add_argument("--seeds", type=int, default=2)
     p.add_argument("--repeats", type=int, default=3)
     a = p.parse_args()
     base = [f"setup={a.setup}", f"k={a.k}", f"generations={a.generations}", f"seeds={a.seeds}"]

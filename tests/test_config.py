@@ -31,7 +31,7 @@ def test_every_option_composes_and_instantiates(group, option):
 
 def test_defaults():
     cfg = make_cfg()
-    assert (cfg.seeds, cfg.seed, cfg.generations) == (16, 0, 5000)
+    assert (cfg.seeds, cfg.seed, cfg.generations) == (16, 0, 20000)
     parts = build(cfg)
     assert type(parts.selector).__name__ == "FixedK" and parts.selector.value == 1
     assert parts.mutation.sigma == 0.1 and parts.mutation.p_gaussian == 0.2

@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import json
+import os
 from collections.abc import Callable
 
 import numpy as np
@@ -46,6 +47,9 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluator=None) ->
                  "ic_xy": run.ic[0], "ic_heading": run.ic[1]}
     if run.done:
         chunk["genomes"] = run.parents_genomes
+    if os.environ.get("ROVERMARL_WORK_LOG"):                         # benchmarks/soak.py counts executed work
+        with open(os.environ["ROVERMARL_WORK_LOG"], "a") as f:
+            f.write(f"{seed} {start} {run.generation}\n")
     return chunk
 
 

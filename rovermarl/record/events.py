@@ -9,7 +9,10 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 
 class Recorder:
@@ -31,10 +34,9 @@ class Recorder:
 
     def occupancy(self, final_xy: np.ndarray) -> np.ndarray:
         """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
-        w = self.world
-        dx = w.poi_xy[None, None, :, 0] - final_xy[:, :, None, 0]
-        dy = w.poi_xy[None, None, :, 1] - final_xy[:, :, None, 1]
-        return (np.sqrt(dx * dx + dy * dy) <= w.obs_radius).sum(axis=1).astype(np.int8)
+        out = np.zeros((final_xy.shape[0], self.world.n_pois), dtype=np.int8)
+        _count(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
+        return out
 
     def start(self, genomes: np.ndarray, score: float) -> None:
         """Generation 0: the initial team was just evaluated (its final positions are in ``child_xy``)."""
@@ -93,3 +95,15 @@ class Recorder:
         b.clear()
         o.clear()
         return out
+
+
+@njit(cache=True)
+def _count(final_xy, poi_xy, radius, out):
+    """out[e, j] += rovers of episode e within ``radius`` of POI j: final_xy (E, N, 2), poi_xy (P, 2), out (E, P)."""
+    for e in range(final_xy.shape[0]):
+        for i in range(final_xy.shape[1]):
+            for j in range(poi_xy.shape[0]):
+                dx = poi_xy[j, 0] - final_xy[e, i, 0]
+                dy = poi_xy[j, 1] - final_xy[e, i, 1]
+                if math.sqrt(dx * dx + dy * dy) <= radius:
+                    out[e, j] += 1

@@ -104,15 +104,17 @@ def _trajectories(rec, rr, result, steps) -> None:
     gens, xy = result["behaviour_generation"], result["behaviour_xy"]       # xy (C, E, T+1, N, 2)
     if len(gens) == 0:
         return
-    colors = rover_colors(xy.shape[3])
-    for g, team in zip(gens, xy, strict=True):
-        rec.set_time("generation", sequence=int(g))
-        for e, episode in enumerate(team):
-            rec.log(f"episodes/{e}/trajectories", rr.LineStrips2D(episode.transpose(1, 0, 2), colors=colors))
-    rec.reset_time()
-    if steps:
-        for t in range(xy.shape[2]):
-            rec.set_time("step", sequence=t)
-            for e in range(xy.shape[1]):
-                rec.log(f"episodes/{e}/rovers", rr.Points2D(xy[-1, e, t], radii=0.25, colors=colors))
-        rec.reset_time()
+    c, n_ep, t1, n = xy.shape[:4]
+    colors = np.tile(rover_colors(n), (c, 1))
+    generation = rr.TimeColumn("generation", sequence=np.asarray(gens, dtype=np.int64))
+    for e in range(n_ep):                                                  # C rows of N lines each
+        strips = xy[:, e].transpose(0, 2, 1, 3).reshape(c * n, t1, 2)
+        rec.send_columns(f"episodes/{e}/trajectories", indexes=[generation],
+                         columns=rr.LineStrips2D.columns(strips=strips, colors=colors).partition([n] * c))
+    if steps:                                                              # T+1 rows of N points each
+        step = rr.TimeColumn("step", sequence=np.arange(t1))
+        step_colors = np.tile(rover_colors(n), (t1, 1))
+        for e in range(n_ep):
+            rec.send_columns(f"episodes/{e}/rovers", indexes=[step],
+                             columns=rr.Points2D.columns(positions=xy[-1, e].reshape(t1 * n, 2), colors=step_colors,
+                                                         radii=np.full(t1 * n, 0.25)).partition([n] * t1))
