@@ -1,11 +1,12 @@
 """Ray throughput: seed-parallel runs with 1..W workers, and the initial-condition-shard trade-off.
 
-Prints one JSON line and writes a plot (``--plot``, default ``benchmarks/scaling.png``).
+Prints one JSON line and writes a plot (``--plot``, default ``docs/figures/scaling.png``).
 
-    python benchmarks/scaling.py [--cpus 2] [--generations 3000] [--seeds 4] [--repeats 3]
+    python benchmarks/scaling.py [--cpus 2] [--generations 20000] [--seeds 4] [--repeats 3]
 
 - ``seed_parallel``: team evaluations per second of whole runs (``run_records``, default recording) with
   ``parallel.workers`` = 1..cpus; measured alternately, median of ``--repeats``.
+- ``bare_processes``: the same loop in 1..cpus plain processes without Ray, for the hardware's own scaling;
 - ``ic_shards``: time per generation of one run evaluated locally vs with its episodes split over S actors,
   for worlds made heavier by ``env.steps`` and ``env.episodes``; ``break_even_agent_steps`` is the lightest
   measured world (agent-steps per team evaluation) where sharding is faster than local evaluation.
@@ -18,6 +19,8 @@ import json
 import os
 import statistics
 import time
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
 
 import ray
 from omegaconf import OmegaConf
@@ -36,6 +39,24 @@ def seed_parallel_rate(workers: int, generations: int, seeds: int) -> float:
     t = time.perf_counter()
     run_records(cfg, records, lambda rec, n: None)
     return seeds * (generations + 1) / (time.perf_counter() - t)
+
+
+def _bare(generations: int) -> float:
+    """One bare process: seconds for ``generations`` of one run's loop (after a warm-up)."""
+    cfg = OmegaConf.to_container(compose_config(f"generations={generations + 100}"), resolve=True)
+    run = Run(cfg, seed=os.getpid())
+    evolve(run, 100)
+    t = time.perf_counter()
+    evolve(run, generations)
+    return time.perf_counter() - t
+
+
+def bare_rate(procs: int, generations: int) -> float:
+    """Team evaluations per second of ``procs`` plain processes without Ray (the hardware's own scaling)."""
+    with ProcessPoolExecutor(procs, mp_context=get_context("spawn")) as pool:
+        list(pool.map(_bare, [200] * procs))                       # start and warm up every process
+        times = list(pool.map(_bare, [generations] * procs))
+    return procs * generations / max(times)
 
 
 def per_generation(run: Run, n: int) -> float:
@@ -93,12 +114,12 @@ def plot(result: dict, path: str) -> None:
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--cpus", type=int, default=2)
-    p.add_argument("--generations", type=int, default=3000)
+    p.add_argument("--generations", type=int, default=20000)
     p.add_argument("--seeds", type=int, default=4)
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--shards", type=int, default=2)
     p.add_argument("--budget", type=float, default=2.0, help="seconds per shard measurement")
-    p.add_argument("--plot", default=os.path.join(os.path.dirname(__file__), "scaling.png"))
+    p.add_argument("--plot", default=os.path.join(os.path.dirname(__file__), "..", "docs", "figures", "scaling.png"))
     a = p.parse_args()
 
     load0 = os.getloadavg()[0]
@@ -110,6 +131,11 @@ def main() -> None:
             rates[w].append(seed_parallel_rate(w, a.generations, a.seeds))
     seed_parallel = {w: {"team_evals_per_s": round(statistics.median(r), 1), "runs": [round(x, 1) for x in r]}
                      for w, r in rates.items()}
+    bare = {w: [] for w in rates}
+    for _ in range(a.repeats):
+        for w in bare:
+            bare[w].append(bare_rate(w, a.generations // 2))
+    bare = {w: round(statistics.median(r), 1) for w, r in bare.items()}
     worlds = [(15, 16), (60, 16), (15, 256), (240, 16), (60, 256), (120, 256), (240, 256)]
     rows = shard_costs(a.shards, worlds, a.budget)
     ray.shutdown()
@@ -119,6 +145,8 @@ def main() -> None:
         "seed_parallel": seed_parallel,
         "speedup_max_workers": round(seed_parallel[a.cpus]["team_evals_per_s"] / seed_parallel[1]["team_evals_per_s"],
                                      3),
+        "bare_processes_team_evals_per_s": bare,
+        "bare_speedup_max_procs": round(bare[a.cpus] / bare[1], 3),
         "ic_shards": {"shards": a.shards, "worlds": rows, "break_even_agent_steps": min(faster) if faster else None},
         "loadavg_1m_start": round(load0, 2), "loadavg_1m_end": round(os.getloadavg()[0], 2),
     }

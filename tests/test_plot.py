@@ -168,13 +168,13 @@ def test_update_and_occupancy_figures(tmp_path):
     index = figures.plot_sweep(tmp_path, formats=["png"])
     figs = by_name(index)
     update = figs["update_duo"]
-    assert update["generations"] == [0, 4] and update["scores"] == [0.0, 1.0]  # the first rise
+    assert update["generations"] == [9, 20]                                      # the last rise: the final team
     assert update["axes"] == 2 * len(update["episodes"]) == 8 and update["run"].endswith("seed_001")
     assert figs["occupancy_duo"]["panels"] == 3 and figs["occupancy_duo"]["entries"] == 4
     # an explicit run and generation
-    main([str(tmp_path), "--format", "png", "--update-run", str(job / "runs" / "seed_001"), "--update-gen", "20"])
+    main([str(tmp_path), "--format", "png", "--update-run", str(job / "runs" / "seed_001"), "--update-gen", "4"])
     index = json.loads((tmp_path / "figures" / "index.json").read_text())
-    assert by_name(index)["update_duo"]["generations"] == [9, 20]
+    assert by_name(index)["update_duo"]["generations"] == [0, 4] and by_name(index)["update_duo"]["scores"] == [0, 1]
 
 
 def _error_line(capsys, argv) -> str:

@@ -370,12 +370,12 @@ def pick_run(jobs: Sequence[Job], filename: str) -> tuple[Job, Run] | None:
 
 def pick_update(generation: np.ndarray, score: np.ndarray, at: int | None = None) -> int | None:
     """Index ``i`` of the behaviour entry shown 'after' (``i - 1`` is 'before'): the entry at generation ``at``,
-    or by default the first whose score rose. None if there is none."""
+    or by default the last whose score rose (the update that made the final team). None if there is none."""
     if at is not None:
         hit = np.flatnonzero(generation == at)
         return int(hit[0]) if hit.size and hit[0] > 0 else None
     rose = np.flatnonzero(np.diff(score) > 0)
-    return int(rose[0]) + 1 if rose.size else None
+    return int(rose[-1]) + 1 if rose.size else None
 
 
 def _scene(ax, world, xy: np.ndarray, lim: float) -> None:
