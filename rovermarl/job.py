@@ -46,9 +46,14 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         if cfg.resume and finished(out, key):
             scores[seed] = load_score(out)
             continue
-        rec = checkpoint.resume(out / "checkpoint.bin", key, log.warning) if cfg.resume else None
+        problems: list[str] = []
+        rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
+        for problem in problems:
+            log.warning("%s: %s", name, problem)
         if rec is not None:
             log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
+        elif problems:
+            log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
         records.append(rec or RunRecord(seed, cfg.generations))
     if scores:
         log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))

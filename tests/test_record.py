@@ -195,3 +195,15 @@ def test_job_resumes_from_checkpoints_and_skips_finished_runs(tmp_path, caplog):
     os.utime(job / "summary.json", ns=(1, 1))
     run_job(cfg, job)                                                        # everything finished: no rewrite
     assert (job / "summary.json").stat().st_mtime_ns == 1
+
+
+def test_job_with_only_corrupt_checkpoints_says_so_and_starts_from_scratch(tmp_path, caplog):
+    cfg = make_cfg("generations=60", "seeds=1", "parallel=serial")
+    ref = run_job(cfg, tmp_path / "ref")
+    ckpt = tmp_path / "job" / "runs" / "seed_000" / "checkpoint.bin"
+    ckpt.parent.mkdir(parents=True)
+    ckpt.write_bytes(b"RMCKPT1 deadbeef\npayload")
+    with caplog.at_level("INFO", logger="rovermarl"):
+        out = run_job(cfg, tmp_path / "job")
+    assert f"{ckpt}: checksum mismatch" in caplog.text and "starts from scratch" in caplog.text
+    assert out["final_score"] == ref["final_score"]
