@@ -133,14 +133,15 @@ def local_cluster(nodes: int = 2, cpus: int = 1, keep: bool = False,
         raise RuntimeError(f"Ray processes of {temp_dir} survived:\n" + "\n".join(left))
 
 
-def nodes_that_ran(temp_dir: str, task: str = "advance_task") -> set[str]:
-    """Ids of the nodes whose workers ran ``task``, from the worker logs (Ray marks each task in them)."""
+def nodes_that_ran(temp_dir: str, marker: str = ":actor_name:ChunkWorker") -> set[str]:
+    """Ids of the nodes whose workers ran rovermarl's chunk actor, from the worker logs (Ray marks each
+    task or actor in them: ``:task_name:<task>`` or ``:actor_name:<class>``)."""
     nodes = set()
     for logs in Path(temp_dir).glob("session_*/logs"):
         if logs.parent.is_symlink():
             continue  # session_latest
         for out in logs.glob("worker-*.out"):
-            if f":task_name:{task}" not in out.read_text(errors="replace"):
+            if marker not in out.read_text(errors="replace"):
                 continue
             _, worker_id, _, pid = out.stem.split("-")  # worker-<worker id>-<job id>-<pid>
             for log in logs.glob(f"python-core-worker-{worker_id}_{pid}.log"):

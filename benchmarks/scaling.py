@@ -28,6 +28,7 @@ from omegaconf import OmegaConf
 from rovermarl.config import compose_config
 from rovermarl.evolution import Run, evolve
 from rovermarl.parallel import run_records
+from rovermarl.parallel.ray_backend import release_pool
 from rovermarl.parallel.shards import ShardActor, ShardedEvaluator
 from rovermarl.record.checkpoint import RunRecord
 
@@ -77,6 +78,7 @@ def shard_costs(shards: int, worlds: list[tuple[int, int]], budget_s: float) -> 
         t_local = per_generation(local, 3)
         n = max(5, min(2000, int(budget_s / t_local)))
         t_local = per_generation(local, n)
+        release_pool()                                             # the seed-parallel actors hold the CPUs
         actors = [ShardActor.remote(cfg) for _ in range(shards)]
         sharded = Run(cfg, seed=0)
         sharded.evaluate = ShardedEvaluator(actors, sharded)

@@ -28,7 +28,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def kill_worker() -> bool:
     """SIGKILL one Ray worker that is executing a chunk; False if none is running right now."""
     for p in psutil.process_iter(["pid", "cmdline"]):
-        if " ".join(p.info["cmdline"] or []).startswith("ray::advance_task"):
+        if " ".join(p.info["cmdline"] or []).startswith("ray::ChunkWorker.advance"):
             os.kill(p.info["pid"], signal.SIGKILL)
             return True
     return False

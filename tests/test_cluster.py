@@ -35,7 +35,7 @@ def test_cluster_sweep_equals_local(tmp_path):
     assert cc.processes(temp_dir) == []
     assert not Path(temp_dir).exists()
     # two runs in flight, one CPU per node: the second chunk task cannot start on the node of the first
-    assert len(nodes) == 2, f"advance_task ran on {len(nodes)} node(s)"
+    assert len(nodes) == 2, f"ChunkWorker.advance ran on {len(nodes)} node(s)"
 
     cc.sweep(tmp_path / "local", [*OVERRIDES, "parallel=serial"], timeout=90)
     jobs = sorted(p.name for p in (tmp_path / "cluster").iterdir() if (p / "runs").is_dir())

@@ -44,7 +44,7 @@ def _kill_one_running_task(killed: list, stop: threading.Event):
     while not stop.is_set() and not killed:
         for p in psutil.process_iter(["pid", "cmdline"]):
             cmd = " ".join(p.info["cmdline"] or [])
-            if cmd.startswith("ray::advance_task"):
+            if cmd.startswith("ray::ChunkWorker.advance"):
                 os.kill(p.info["pid"], signal.SIGKILL)
                 killed.append(p.info["pid"])
                 return

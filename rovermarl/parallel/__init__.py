@@ -1,4 +1,4 @@
-"""Where the independent runs of a job execute: in this process (``parallel=serial``) or as Ray tasks.
+"""Where the independent runs of a job execute: in this process (``parallel=serial``) or on Ray actors.
 
 Both go through :func:`advance`: a run moves forward in chunks of ``parallel.chunk`` generations, each
 chunk starting from the compact state the previous one returned. A chunk is therefore a pure function of

@@ -1,6 +1,6 @@
-"""Runs as Ray tasks. One embedded Ray (or a joined cluster) serves every job of a multirun. Only plain
-config dicts, integer seeds and run states (arrays and numbers) cross to the workers; the driver writes
-every file."""
+"""Runs on Ray. One embedded Ray (or a joined cluster) serves every job of a multirun, and one pool of
+:class:`ChunkWorker` actors (one CPU each) is reused by all its jobs. Only plain config dicts, integer seeds
+and run states (arrays and numbers) cross to the workers; the driver writes every file."""
 
 from __future__ import annotations
 
@@ -13,11 +13,31 @@ import ray
 from rovermarl.parallel import advance, plain
 
 
-@ray.remote(num_cpus=1, retry_exceptions=False)
-def advance_task(cfg: dict, seed: int, state: dict | None, n: int) -> dict:
-    """:func:`rovermarl.parallel.advance` as a Ray task. If its worker process dies, Ray reruns it
-    (``parallel.retries`` times) from the same inputs, so the chunk's numbers do not change."""
-    return advance(cfg, seed, state, n)
+@ray.remote(num_cpus=1)
+class ChunkWorker:
+    """Runs chunks: :func:`rovermarl.parallel.advance`, a pure function of its arguments. The actor keeps no
+    run state, so when its process dies Ray restarts it and reruns the pending call (``parallel.retries``)
+    with the same inputs and the same result. Actor calls skip the scheduler round trip that tasks pay."""
+
+    def advance(self, cfg: dict, seed: int, state: dict | None, n: int) -> dict:
+        return advance(cfg, seed, state, n)
+
+
+_POOL: list = []
+
+
+def release_pool() -> None:
+    """Stop the pool's actors and free their CPUs (before IC-shard actors need them)."""
+    for actor in _POOL:
+        ray.kill(actor)
+    _POOL.clear()
+
+
+def _workers(n: int, retries: int) -> list:
+    """``n`` actors of the pool, started on first use."""
+    while len(_POOL) < n:
+        _POOL.append(ChunkWorker.options(max_restarts=retries, max_task_retries=retries).remote())
+    return _POOL[:n]
 
 
 def ensure_ray(ray_cfg) -> None:
@@ -44,25 +64,24 @@ def _probe(address: str, timeout: float = 5.0) -> None:
 
 
 def run_ray(cfg, records, on_chunk) -> None:
-    """Advance the records on Ray, one chunk task per run in flight, at most one per worker slot."""
+    """Advance the records on the actor pool: one chunk per run in flight, at most one per actor."""
     ensure_ray(cfg.ray)
     slots = cfg.parallel.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
-    job_cfg = ray.put(plain(cfg))
-    chunk = cfg.parallel.chunk
-    task = advance_task.options(max_retries=cfg.parallel.retries)
     queue = [rec for rec in records if not rec.done]
+    free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5))
+    job_cfg = ray.put(plain(cfg))
     inflight = {}
 
-    def submit(rec):
-        inflight[task.remote(job_cfg, rec.seed, rec.state, chunk)] = rec
+    def submit(rec, worker):
+        inflight[worker.advance.remote(job_cfg, rec.seed, rec.state, cfg.parallel.chunk)] = rec, worker
 
-    while queue and len(inflight) < slots:
-        submit(queue.pop(0))
+    while queue and free:
+        submit(queue.pop(0), free.pop())
     while inflight:
         [ref], _ = ray.wait(list(inflight), num_returns=1)
-        rec = inflight.pop(ref)
+        rec, worker = inflight.pop(ref)
         on_chunk(rec, rec.add(ray.get(ref)))
         if not rec.done:
-            submit(rec)
+            submit(rec, worker)
         elif queue:
-            submit(queue.pop(0))
+            submit(queue.pop(0), worker)

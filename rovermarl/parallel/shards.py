@@ -14,7 +14,7 @@ from omegaconf import OmegaConf
 from rovermarl.env import World
 from rovermarl.env.world import score
 from rovermarl.parallel import advance, plain
-from rovermarl.parallel.ray_backend import ensure_ray
+from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
 
 @ray.remote(num_cpus=1)
@@ -56,6 +56,7 @@ class ShardedEvaluator:
 def run_sharded(cfg, records, on_chunk) -> None:
     """Advance the records one after another, each evaluation split over ``parallel.ic_shards`` actors."""
     ensure_ray(cfg.ray)
+    release_pool()                                                      # its actors hold the CPUs shards need
     job = plain(cfg)
     actors = [ShardActor.remote(job) for _ in range(cfg.parallel.ic_shards)]
     try:
