@@ -70,6 +70,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     every = max(cfg.checkpoint.every, 1)
     t0 = time.perf_counter()
     start = sum(rec.generation for rec in records)
+    fresh = sum(rec.state is None for rec in records)                    # each evaluates its initial team too
     with tqdm(total=sum(rec.generations for rec in records), initial=start, desc=name, unit="gen", disable=None,
               leave=False, dynamic_ncols=True) as bar:
         def on_chunk(rec: RunRecord, advanced: int) -> None:
@@ -86,7 +87,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         run_records(cfg, records, on_chunk)
     wall = time.perf_counter() - t0
     summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
-                        team_evals=sum(rec.generations for rec in records) - start + len(records))
+                        team_evals=sum(rec.generations for rec in records) - start + fresh)
     write_json(summary_path, summary)
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)

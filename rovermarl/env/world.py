@@ -129,6 +129,13 @@ class World:
         return float(best[-1])
 
     # ---- initial conditions -------------------------------------------------------------------
+    @property
+    def quadrant_signs(self) -> np.ndarray:
+        """(N, 2): the signs of x and y in rover ``i``'s start quadrant ``i mod 4`` (0: ++, 1: -+, 2: --, 3: +-)."""
+        quadrant = np.arange(self.n_rovers) % 4
+        return np.stack([np.where((quadrant == 0) | (quadrant == 3), 1.0, -1.0),
+                         np.where(quadrant <= 1, 1.0, -1.0)], axis=1)
+
     def initial_conditions(self, seed=0, n: int | None = None) -> InitialConditions:
         """Draw ``n`` (default ``episodes``) starts: xy (n, N, 2), heading (n, N).
 
@@ -138,10 +145,7 @@ class World:
         """
         rng = np.random.default_rng(seed)
         n = self.episodes if n is None else n
-        quadrant = np.arange(self.n_rovers) % 4
-        signs = np.stack([np.where((quadrant == 0) | (quadrant == 3), 1.0, -1.0),
-                          np.where(quadrant <= 1, 1.0, -1.0)], axis=1)
-        xy = rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)) * signs
+        xy = rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)) * self.quadrant_signs
         sector = 2 * np.pi / self.n_rovers
         low = sector * np.arange(self.n_rovers)
         heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))

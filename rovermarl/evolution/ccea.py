@@ -87,12 +87,12 @@ class Run:
     """One independent run from one integer seed.
 
     The seed's ``SeedSequence`` spawns four independent streams: initial conditions, initial genomes,
-    mutation (which rovers, which changes) and selector. :meth:`state` / :meth:`load` capture and
-    restore everything the next generation depends on, so a run resumed from a state is bit-identical
-    to one that never stopped.
+    mutation (which rovers, which changes) and selector. :meth:`state` captures everything the next
+    generation depends on; ``Run(cfg, seed, state=...)`` continues from it, bit-identical to a run that
+    never stopped.
     """
 
-    def __init__(self, cfg, seed: int, parts: Parts | None = None):
+    def __init__(self, cfg, seed: int, parts: Parts | None = None, state: dict | None = None):
         self.seed = int(seed)
         self.parts = p = parts or build(cfg)
         cfg = OmegaConf.to_container(cfg, resolve=True) if OmegaConf.is_config(cfg) else cfg  # plain: cheap access
@@ -107,6 +107,9 @@ class Run:
         self.generations = int(cfg["generations"])
         self.generation = 0
         self.history = History(self.generations, p.selector)
+        if state is not None:                                            # resume: no initial evaluation
+            self.load(state)
+            return
         self.f_parent = self.evaluate(p.team.genomes(self.parents))
         self.history.score[0] = self.f_parent
         self.recorder.start(self.parents_genomes, self.f_parent)
@@ -156,11 +159,12 @@ def evolve(run: Run, generations: int) -> None:
         k = selector.choose(run.rng_sel)                                 # 1. choose k
         chosen = team.pick(k, run.rng_mut)                               # 2. k distinct rovers
         children = team.mutate(run.parents, chosen, mutate, run.rng_mut)  # 3. mutate them
-        f_child = run.evaluate(team.genomes(children))                   # 4. evaluate the team
+        genomes = team.genomes(children)                                 # (N, P): the team the world sees
+        f_child = run.evaluate(genomes)                                  # 4. evaluate the team
         accepted = accept(f_child, run.f_parent)                         # 5. all k children or none
         selector.update(k, f_child, run.f_parent)                        # 6. reward the selector
         if accepted:                                                     # 7. record behaviour changes
-            run.recorder.accepted(g + 1, team.genomes(children), f_child, f_child != run.f_parent)
+            run.recorder.accepted(g + 1, genomes, f_child, f_child != run.f_parent)
             run.parents, run.f_parent = children, f_child
         h.k[g], h.accepted[g], h.child_score[g], h.score[g + 1] = k, accepted, f_child, run.f_parent
         run.generation = g + 1

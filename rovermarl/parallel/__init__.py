@@ -32,9 +32,7 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluator=None) ->
     in them, the new ``state``; plus ``initial_score`` and the initial conditions when starting, and the
     final ``genomes`` when the run is done.
     """
-    run = Run(cfg, seed, parts=_parts(cfg))
-    if state is not None:
-        run.load(state)
+    run = Run(cfg, seed, parts=_parts(cfg), state=state)
     if evaluator is not None:
         run.evaluate = evaluator(run)
     start = run.generation

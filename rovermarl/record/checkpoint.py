@@ -76,8 +76,7 @@ class RunRecord:
     # ---- checkpoint files -----------------------------------------------------------------------
     def save(self, path: Path, config_hash: str) -> None:
         """Write atomically; the previous checkpoint is kept as ``<name>.prev``."""
-        arrays: dict[str, np.ndarray] = {"score": self.score, **self.history, **self.extra}
-        arrays |= {key: np.concatenate(parts) for key, parts in self.events.items()}
+        arrays = {key: value for key, value in self.result().items() if key != "seed"}
         meta = {"seed": self.seed, "generations": self.generations, "generation": self.generation,
                 "config_hash": config_hash, "history_keys": sorted(self.history), "extra_keys": sorted(self.extra),
                 "state": _encode(self.state, arrays)}

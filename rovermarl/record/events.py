@@ -28,7 +28,7 @@ class Recorder:
         self.count = None
         self.last_behaviour = -1
         self.moved = False                                             # parent changed since the last behaviour entry
-        self.parents = None                                            # (N, P) genomes of the current parent team
+        self.parents, self.parent_score = None, None                   # the current parent team: (N, P), its score
         self._behaviour: list[tuple[int, float, np.ndarray]] = []
         self._occupancy: list[tuple[int, np.ndarray]] = []
 

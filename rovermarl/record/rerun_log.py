@@ -61,10 +61,7 @@ def _scene(rec, rr, world) -> None:
     ring = world.obs_radius * np.stack([np.cos(theta), np.sin(theta)], axis=1)
     rec.log("world/poi_radius", rr.LineStrips2D([p + ring for p in world.poi_xy], colors=colors), static=True)
     b = world.start_box
-    quadrant = np.arange(world.n_rovers) % 4
-    centres = b / 2 * np.stack([np.where((quadrant == 0) | (quadrant == 3), 1.0, -1.0),
-                                np.where(quadrant <= 1, 1.0, -1.0)], axis=1)
-    rec.log("world/start_boxes", rr.Boxes2D(centers=centres, sizes=[[b, b]] * world.n_rovers,
+    rec.log("world/start_boxes", rr.Boxes2D(centers=b / 2 * world.quadrant_signs, sizes=[[b, b]] * world.n_rovers,
                                             colors=rover_colors(world.n_rovers)), static=True)
 
 
