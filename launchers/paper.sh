@@ -1,6 +1,13 @@
 #!/usr/bin/env bash
-# The paper's sweeps on both setups: fixed k = 1, 2, 4 and EXP3-adaptive k (Figs. 4, 5, 8), then the
-# homogeneous control. Extra arguments are Hydra overrides, e.g. `launchers/paper.sh generations=20000`.
-set -euo pipefail
-python -m rovermarl.train -m k=1,2,4,adaptive setup=solo,duo "$@"
-python -m rovermarl.train -m team=homogeneous setup=solo,duo "$@"
+# The whole reproduction study: Figs. 4, 5, 7 and 8 into OUT (resumable: rerun it after an interruption),
+# then the compact results (RESULTS, default results/paper) and their figures and claim statistics.
+# Usage: [GENERATIONS=N] [SEEDS=S] [OUT=DIR] [RESULTS=DIR] launchers/paper.sh [HYDRA_OVERRIDE ...]
+here="$(dirname "$0")"
+source "$here/_sweep.sh"
+RESULTS="${RESULTS:-results/paper}"
+for fig in fig4 fig5 fig7 fig8; do
+    bash "$here/$fig.sh" "$@"
+done
+"$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS"
+"$PYTHON" -m rovermarl.plot "$RESULTS" --format png
+"$PYTHON" -m rovermarl.analysis claims "$RESULTS"

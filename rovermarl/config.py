@@ -14,7 +14,7 @@ from rovermarl.evolution import build
 
 TOP_LEVEL = {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record",
              "seeds", "seed", "generations", "levels", "ray", "resume", "checkpoint"}
-NOT_IN_DIR_NAMES = ("parallel", "ray", "record", "checkpoint", "resume", "hydra")  # settings that keep results
+NOT_IN_DIR_NAMES = ("parallel", "ray", "record", "checkpoint", "resume", "hydra", "seeds")  # keep results
 _INT = re.compile(r"[+-]?\d+")
 _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
 

@@ -16,7 +16,7 @@ def test_paper_sweep_cli_tiny_budget(tmp_path):
                    f"hydra.sweep.dir={sweep}", "ray.num_cpus=2", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     jobs = sorted(p.name for p in sweep.iterdir() if p.is_dir() and p.name != "figures")
-    assert jobs == sorted(f"generations=20,k={k},seeds=2,setup={s}"
+    assert jobs == sorted(f"generations=20,k={k},setup={s}"  # seeds: not in names, a larger count reuses runs
                           for k in (1, 2, 4, "adaptive") for s in ("solo", "duo"))
     for job in jobs:
         summary = json.loads((sweep / job / "summary.json").read_text())

@@ -39,7 +39,7 @@ def test_cluster_sweep_equals_local(tmp_path):
 
     cc.sweep(tmp_path / "local", [*OVERRIDES, "parallel=serial"], timeout=90)
     jobs = sorted(p.name for p in (tmp_path / "cluster").iterdir() if (p / "runs").is_dir())
-    assert jobs == ["generations=200,k=1,seeds=3,setup=duo", "generations=200,k=adaptive,seeds=3,setup=duo"]
+    assert jobs == ["generations=200,k=1,setup=duo", "generations=200,k=adaptive,setup=duo"]
     assert cc.compare(tmp_path / "local", tmp_path / "cluster") >= 2 * 3 * 2  # curve + genomes, every run
 
 

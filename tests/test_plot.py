@@ -233,7 +233,7 @@ def test_real_tiny_sweep_with_callback(tmp_path):
     for f in index["figures"]:
         assert all((sweep / "figures" / name).exists() for name in f["files"])
     # one job dir on its own, into another dir
-    job = sweep / "generations=25,k=1,seeds=2,setup=duo"
+    job = sweep / "generations=25,k=1,setup=duo"
     main([str(job), "--out", str(tmp_path / "one"), "--format", "pdf"])
     one = json.loads((tmp_path / "one" / "index.json").read_text())
     assert by_name(one)["curves_duo"]["methods"] == ["k=1"] and (tmp_path / "one" / "curves_duo.pdf").exists()

@@ -56,8 +56,8 @@ def test_tiny_sweep_leaves_one_rrd_per_run_with_the_right_entities(tmp_path):
     proc = run_cli("-m", "k=1,adaptive", "setup=duo", "generations=300", "seeds=4", f"hydra.sweep.dir={sweep}",
                    "ray.num_cpus=2", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
-    for job, bandit in (("generations=300,k=1,seeds=4,setup=duo", False),
-                        ("generations=300,k=adaptive,seeds=4,setup=duo", True)):
+    for job, bandit in (("generations=300,k=1,setup=duo", False),
+                        ("generations=300,k=adaptive,setup=duo", True)):
         rrds = sorted((sweep / job / "runs").glob("seed_*/run.rrd"))
         assert [p.parent.name for p in rrds] == [f"seed_{s:03d}" for s in range(4)]
         run = rrds[0].parent

@@ -94,7 +94,7 @@ def test_driver_sigkill_mid_sweep_then_relaunch_resumes(tmp_path):
     assert len(list(sweep.glob("*/runs/*/run.json"))) == 8 and not list(sweep.glob("*/runs/*/checkpoint*"))
 
     for k in (1, 2):
-        job = f"generations=2000,k={k},seeds=4,setup=duo"
+        job = f"generations=2000,k={k},setup=duo"
         run_job(make_cfg("setup=duo", f"k={k}", "generations=2000", "seeds=4", "parallel=serial"),
                 tmp_path / "ref" / job)
         _assert_same(_arrays(tmp_path / "ref" / job), _arrays(sweep / job))

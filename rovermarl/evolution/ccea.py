@@ -62,7 +62,8 @@ class History:
     """Per-generation record of a run of G generations.
 
     score (G+1,): parent score after each generation (score[0]: initial team); child_score (G,);
-    k (G,); accepted (G,); probs (G, K) for selectors with probabilities, else None.
+    k (G,); accepted (G,); switched (G,) int16, episodes in which an unmutated rover changed its final POI
+    (see :mod:`rovermarl.record.events`); probs (G, K) for selectors with probabilities, else None.
     """
 
     def __init__(self, generations: int, selector):
@@ -70,6 +71,7 @@ class History:
         self.child_score = np.full(generations, np.nan)
         self.k = np.zeros(generations, dtype=np.int16)
         self.accepted = np.zeros(generations, dtype=bool)
+        self.switched = np.full(generations, -1, dtype=np.int16)
         probs = selector.probs
         self.probs = None if probs is None else np.full((generations, len(probs)), np.nan)
 
@@ -77,7 +79,7 @@ class History:
         """Generations [start, stop): per-generation arrays, and ``score`` after each of them."""
         stop = len(self.k) if stop is None else stop
         out = {"score": self.score[start + 1:stop + 1], "k": self.k[start:stop], "accepted": self.accepted[start:stop],
-               "child_score": self.child_score[start:stop]}
+               "switched": self.switched[start:stop], "child_score": self.child_score[start:stop]}
         if self.probs is not None:
             out["probs"] = self.probs[start:stop]
         return out
@@ -161,6 +163,7 @@ def evolve(run: Run, generations: int) -> None:
         children = team.mutate(run.parents, chosen, mutate, run.rng_mut)  # 3. mutate them
         genomes = team.genomes(children)                                 # (N, P): the team the world sees
         f_child = run.evaluate(genomes)                                  # 4. evaluate the team
+        h.switched[g] = run.recorder.switched(team.mutated(chosen))      #    did unmutated rovers switch POI?
         accepted = accept(f_child, run.f_parent)                         # 5. all k children or none
         selector.update(k, f_child, run.f_parent)                        # 6. reward the selector
         if accepted:                                                     # 7. record behaviour changes

@@ -32,6 +32,10 @@ class Team:
         """The team as the world sees it: (N, P)."""
         raise NotImplementedError
 
+    def mutated(self, chosen: np.ndarray) -> np.ndarray:
+        """(N,) bool: the rovers whose genome changes when the parents ``chosen`` are mutated."""
+        raise NotImplementedError
+
 
 class HeterogeneousTeam(Team):
     """One genome per rover; each generation mutates ``k`` distinct rovers drawn uniformly."""
@@ -46,6 +50,11 @@ class HeterogeneousTeam(Team):
     def genomes(self, parents):
         return parents
 
+    def mutated(self, chosen):
+        mask = np.zeros(self.n_agents, dtype=bool)
+        mask[chosen] = True
+        return mask
+
 
 class HomogeneousTeam(Team):
     """One genome cloned on all rovers; each generation mutates it once, whatever ``k``."""
@@ -58,3 +67,6 @@ class HomogeneousTeam(Team):
 
     def genomes(self, parents):
         return np.repeat(parents, self.n_agents, axis=0)
+
+    def mutated(self, chosen):
+        return np.ones(self.n_agents, dtype=bool)

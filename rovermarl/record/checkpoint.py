@@ -22,7 +22,7 @@ from rovermarl.record.outputs import atomic_open
 
 MAGIC = b"RMCKPT1"
 EVENT_KEYS = ("behaviour_generation", "behaviour_score", "behaviour_xy", "occupancy_generation", "occupancy_count")
-HISTORY_KEYS = ("k", "accepted", "child_score", "probs")
+HISTORY_KEYS = ("k", "accepted", "switched", "child_score", "probs")
 
 
 class CheckpointError(Exception):
@@ -57,7 +57,7 @@ class RunRecord:
             if key in chunk:
                 if key not in self.history:
                     tail = chunk[key].shape[1:]
-                    fill = np.nan if chunk[key].dtype.kind == "f" else 0
+                    fill = np.nan if chunk[key].dtype.kind == "f" else -1 if key == "switched" else 0
                     self.history[key] = np.full((self.generations, *tail), fill, dtype=chunk[key].dtype)
                 self.history[key][start:stop] = chunk[key]
         for key in EVENT_KEYS:

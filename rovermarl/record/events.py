@@ -2,6 +2,10 @@
 
 - occupancy: how many rovers observe each POI at the end of each episode, ``count`` (E, P) int8. Logged at
   generation 0 and whenever an accepted team changes it; the latest entry holds until the next one.
+- switched: per generation, in how many of the E episodes at least one rover that this generation did not mutate
+  ends observing a different POI (or none instead of one, or the reverse) in the evaluated team than in the
+  parent team: the phenotypic coupling of the paper's Section 5.3. -1 when every rover was mutated (k = N,
+  homogeneous team) or occupancy recording is off.
 - behaviour: the parent team's trajectories ``xy`` (E, T+1, N, 2) float32 at generation 0, at every accepted
   generation that changed the score (and at the generation before it when the team changed since the last
   entry, so every score change has its exact before and after), and at the last generation.
@@ -25,6 +29,8 @@ class Recorder:
         shape = ic[0].shape                                            # (E, N, 2)
         self.child_xy = np.empty(shape) if self.occupancy_on else None  # the evaluation writes final positions here
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
+        self.child_poi = np.empty(shape[:2], dtype=np.int8)              # POI each rover observes at the end, -1: none
+        self.parent_poi = np.empty(shape[:2], dtype=np.int8)
         self.count = None
         self.last_behaviour = -1
         self.moved = False                                             # parent changed since the last behaviour entry
@@ -38,6 +44,20 @@ class Recorder:
         _count(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
         return out
 
+    def observed(self, final_xy: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """The POI each rover observes at the end: final_xy (E, N, 2) -> (E, N) int8, lowest index within
+        ``obs_radius``, -1 for none."""
+        out = np.empty(final_xy.shape[:2], dtype=np.int8) if out is None else out
+        _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
+        return out
+
+    def switched(self, mutated: np.ndarray) -> int:
+        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI than under the parents
+        (the team evaluated last against the parent team); -1 if every rover was mutated or occupancy is off."""
+        if not self.occupancy_on or mutated.all():
+            return -1
+        return _switched(self.observed(self.child_xy, self.child_poi), self.parent_poi, mutated)
+
     def start(self, genomes: np.ndarray, score: float) -> None:
         """Generation 0: the initial team was just evaluated (its final positions are in ``child_xy``)."""
         self.accepted(0, genomes, score, True)
@@ -46,6 +66,7 @@ class Recorder:
         """The team evaluated last (genomes (N, P)) became the parent at ``generation``."""
         if self.occupancy_on:
             self.child_xy, self.parent_xy = self.parent_xy, self.child_xy
+            self.observed(self.parent_xy, self.parent_poi)
             count = self.occupancy(self.parent_xy)
             if self.count is None or not np.array_equal(count, self.count):
                 self.count = count
@@ -79,6 +100,7 @@ class Recorder:
         if self.occupancy_on and state["parent_xy"] is not None:
             self.parent_xy = np.array(state["parent_xy"], dtype=np.float64)
             self.count = self.occupancy(self.parent_xy)
+            self.observed(self.parent_xy, self.parent_poi)
         self._behaviour.clear()
         self._occupancy.clear()
 
@@ -107,3 +129,29 @@ def _count(final_xy, poi_xy, radius, out):
                 dy = poi_xy[j, 1] - final_xy[e, i, 1]
                 if math.sqrt(dx * dx + dy * dy) <= radius:
                     out[e, j] += 1
+
+
+@njit(cache=True)
+def _observed(final_xy, poi_xy, radius, out):
+    """out[e, i] = lowest j with rover i of episode e within ``radius`` of POI j, else -1: out (E, N) int8."""
+    for e in range(final_xy.shape[0]):
+        for i in range(final_xy.shape[1]):
+            out[e, i] = -1
+            for j in range(poi_xy.shape[0]):
+                dx = poi_xy[j, 0] - final_xy[e, i, 0]
+                dy = poi_xy[j, 1] - final_xy[e, i, 1]
+                if math.sqrt(dx * dx + dy * dy) <= radius:
+                    out[e, i] = j
+                    break
+
+
+@njit(cache=True)
+def _switched(child, parent, mutated):
+    """Episodes e with child[e, i] != parent[e, i] for some rover i not ``mutated``: child, parent (E, N)."""
+    n = 0
+    for e in range(child.shape[0]):
+        for i in range(child.shape[1]):
+            if not mutated[i] and child[e, i] != parent[e, i]:
+                n += 1
+                break
+    return n

@@ -3,7 +3,8 @@
 Job dir layout::
 
     summary.json
-    runs/seed_XXX/curve.npz               score (G+1), k (G), accepted (G), child_score (G), probs (G, K)
+    runs/seed_XXX/curve.npz               score (G+1), k (G), accepted (G), switched (G) int16, child_score (G),
+                                          probs (G, K)
     runs/seed_XXX/genomes.npy             final team genomes (N, P)
     runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N)
     runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
@@ -23,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-CURVE_KEYS = ("score", "k", "accepted", "child_score", "probs")
+CURVE_KEYS = ("score", "k", "accepted", "switched", "child_score", "probs")
 _UMASK = os.umask(0)
 os.umask(_UMASK)
 
