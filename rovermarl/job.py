@@ -89,6 +89,9 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
                         team_evals=sum(rec.generations for rec in records) - start + fresh)
     write_json(summary_path, summary)
+    with open(job_dir / "invocations.jsonl", "a") as f:                  # compute of every launch, for totals
+        f.write(json.dumps({"finished_at": time.time(), "wall_time_s": wall, "team_evals": summary["team_evals"],
+                            "runs_advanced": len(records)}) + "\n")
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
