@@ -1,8 +1,8 @@
-"""Figures: ``python -m rovermarl.plot SWEEP_DIR [--out DIR] [--threshold SETUP=VALUE ...] [--format png pdf]``.
+"""Figures: ``python -m rovermarl.plot PATH [--out DIR] [--threshold SETUP=VALUE ...] [--format ...] [--xscale log]``.
 
-Draws the paper's figures from a finished (or partly finished) sweep, or from one job dir, into
-``SWEEP_DIR/figures/`` (see :mod:`rovermarl.analysis.figures`). Bad input exits with status 2 and one line on
-stderr. :class:`PlotCallback` does the same at the end of a Hydra multirun and never fails the sweep.
+Draws the paper's figures from a finished (or partly finished) sweep, one job dir, or exported results
+(``results/paper``) into ``PATH/figures/`` (see :mod:`rovermarl.analysis.figures`). Bad input exits with
+status 2 and one line on stderr. :class:`PlotCallback` does the same when a Hydra multirun ends, and never fails it.
 """
 
 from __future__ import annotations
@@ -47,6 +47,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--threshold", type=_threshold, action="append", default=[], metavar="SETUP=VALUE",
                    help="score whose first reaching is marked by quartile lines (default duo=5, solo=4)")
     p.add_argument("--format", nargs="+", choices=("png", "pdf", "svg"), default=list(FORMATS), dest="formats")
+    p.add_argument("--xscale", choices=("linear", "log"), default="linear",
+                   help="generation axes: linear, or log (generation 0 included)")
     p.add_argument("--update-run", type=Path, default=None, metavar="RUN_DIR",
                    help="run dir (runs/seed_XXX) whose behaviour.npz the update figure shows")
     p.add_argument("--update-gen", type=int, default=None, metavar="G",
@@ -61,7 +63,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
     try:
         index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
-                           args.update_gen, log=log)
+                           args.update_gen, log=log, xscale=args.xscale)
     except PlotError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)

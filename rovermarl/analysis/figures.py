@@ -54,6 +54,7 @@ class Run:
     seed: int
     score: np.ndarray  # (G+1,) parent score after each generation
     probs: np.ndarray | None  # (G, K) bandit arm probabilities, None for fixed k
+    probs_x: np.ndarray | None = None  # generations of the rows of probs (exported results), None: 0..G-1
 
     def has(self, name: str) -> bool:
         return (self.path / name).is_file()
@@ -157,9 +158,22 @@ def load_run(run_dir: Path) -> Run:
     return Run(run_dir, int(match[1]) if match else -1, score, probs)
 
 
+def _exported_runs(path: Path) -> list[Run]:
+    """The runs of an exported job dir (see :mod:`rovermarl.analysis.results`): exact curves, probs on the grid."""
+    from rovermarl.analysis.results import Curves
+    with np.load(path / "curves.npz") as z:
+        curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
+        probs, grid = (z["probs"], z["grid"]) if "probs" in z.files else (None, None)
+    return [Run(path, int(seed), curves.full(i), None if probs is None else probs[i].astype(np.float64), grid)
+            for i, seed in enumerate(curves.seeds)]
+
+
 def load_job(path: Path, notes: list[str]) -> Job | None:
-    """Read one job dir (finished or not); None, with a note, if it has no readable run."""
+    """Read one job dir (finished or not, or exported); None, with a note, if it has no readable run."""
     summary = _read_json(path / "summary.json")
+    if (path / "curves.npz").is_file():
+        return Job(path, dict(summary.get("choices") or {}), _read_yaml(path / "config.yaml") or {}, [],
+                   _exported_runs(path), True)
     hydra_dir = path / ".hydra"
     choices = dict((summary or {}).get("choices") or {})
     if not choices:
@@ -177,7 +191,8 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     if not runs:
         notes.append(f"{path.name}: no finished run yet; job skipped")
         return None
-    job = Job(path, choices, _read_yaml(hydra_dir / "config.yaml") or {}, overrides, runs, summary is not None)
+    config = _read_yaml(hydra_dir / "config.yaml") or _read_yaml(path / "config.yaml") or {}  # CLI, or library use
+    job = Job(path, choices, config, overrides, runs, summary is not None)
     expected = len((summary or {}).get("seeds") or []) or job.config.get("seeds")
     if not job.finished or (expected and len(runs) < expected):
         state = "finished" if job.finished else "unfinished"
@@ -197,7 +212,7 @@ def find_jobs(path: Path) -> tuple[list[Job], list[str]]:
     dirs = {p.parent for p in path.rglob("summary.json")}
     dirs |= {p.parent.parent.parent for p in path.rglob("runs/seed_*/curve.npz")}
     if not dirs:
-        raise PlotError(f"no job under {path} (no summary.json or runs/seed_*/curve.npz)")
+        raise PlotError(f"no job under {path} (no summary.json, runs/seed_*/curve.npz or exported curves.npz)")
     notes: list[str] = []
     jobs = [job for d in sorted(dirs) if (job := load_job(d, notes)) is not None]
     if not jobs:
@@ -265,9 +280,11 @@ def quartile_generations(scores: Sequence[np.ndarray], level: float,
     return out
 
 
-def _plot(ax, y, **kw):
-    x, yy = downsample(y)
-    ax.plot(x, yy, **kw)
+def _plot(ax, y, x=None, **kw):
+    """Plot y (G,) against 0..G-1 (downsampled), or against the given x (M,) as is."""
+    if x is None:
+        x, y = downsample(y)
+    ax.plot(x, y, **kw)
 
 
 def _new_figure(width: float, height: float) -> Figure:
@@ -352,8 +369,9 @@ def fig_bandit(setup: str, jobs: Sequence[Job]) -> tuple[Figure, dict]:
         probs = [r.probs for r in job.runs if r.probs is not None]
         length = min(len(p) for p in probs)
         mean = np.mean([p[:length] for p in probs], axis=0)
+        x = job.runs[0].probs_x
         for a, arm in enumerate(job.arms(mean.shape[1])):
-            _plot(ax, mean[:, a], color=f"C{a % 10}", label=f"k={arm}")
+            _plot(ax, mean[:, a], x=None if x is None else x[:length], color=f"C{a % 10}", label=f"k={arm}")
         ax.set(title=f"{lab}: mean over {len(probs)} runs", xlabel="generation", ylim=(0, 1))
         ax.legend(fontsize=8, loc="upper right")
     axes[0].set_ylabel("probability of choosing k")
@@ -514,8 +532,11 @@ def _behaviour_figures(setup: str, group: Sequence[Job], chosen: tuple[Job, Run]
 
 def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float] | None = None,
                formats: Sequence[str] = FORMATS, update_run: Path | None = None, update_gen: int | None = None,
-               log=None) -> dict:
+               log=None, xscale: str = "linear") -> dict:
     """Draw every figure of the sweep (or job) dir ``path`` into ``out`` (default ``path/figures``).
+
+    ``path`` may also be a results dir of :mod:`rovermarl.analysis.results`; it adds the Fig. 6 and C8
+    figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included).
 
     Returns the index (also written as ``index.json``). Raises :class:`PlotError` on unusable input.
     """
@@ -530,6 +551,10 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
             return
         fig, info = drawn
         name = kind + "_" + re.sub(r"[^\w.-]+", "_", setup)
+        if xscale == "log":
+            for ax in fig.axes:
+                if ax.get_xlabel() == "generation" or ax.get_shared_x_axes().get_siblings(ax) != [ax]:
+                    ax.set_xscale("symlog", linthresh=1)
         panels = sum(1 for ax in fig.axes if not hasattr(ax, "_colorbar"))
         figures.append({"name": name, "kind": kind, "setup": setup, "files": save(fig, out, name, formats),
                         "axes": len(fig.axes), "panels": panels, **info})
@@ -546,6 +571,12 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
             emit("bandit", setup, fig_bandit(setup, bandits))
         for kind, drawn in _behaviour_figures(setup, group, chosen, update_gen, notes):
             emit(kind, setup, drawn)
+
+    if (path / "fig6.npz").is_file():                                   # exported results: C8 figures
+        from rovermarl.analysis.fig6 import fig_fig6, fig_switched
+        from rovermarl.analysis.results import load
+        emit("fig6", "duo", fig_fig6(path / "fig6.npz", "symlog" if xscale == "log" else "linear"))
+        emit("switched", "k1", fig_switched(load(path)))
 
     if log is not None:
         for note in notes:

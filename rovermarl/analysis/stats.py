@@ -82,7 +82,7 @@ class Test:
     effect: float
 
     def fmt(self) -> str:
-        return f"U={self.u:g}, p={format_p(self.p)}, P(a>b)={self.effect:.2f}"
+        return f"U={self.u:g}, p{format_p(self.p)}, P(a>b)={self.effect:.2f}"
 
     def as_dict(self) -> dict:
         return {"U": self.u, "p": self.p, "effect": self.effect}
@@ -101,7 +101,7 @@ def mann_whitney(x, y) -> Test:
 
 
 def format_p(p: float) -> str:
-    return "<1e-4" if p < 1e-4 else f"{p:.2g}"
+    return "<1e-4" if p < 1e-4 else f"={p:.2g}"
 
 
 def first_times(score: np.ndarray, level: float) -> np.ndarray:

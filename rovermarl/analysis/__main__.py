@@ -1,0 +1,59 @@
+"""``python -m rovermarl.analysis {export,claims} ...``: compact results of a sweep, and the claims report.
+
+- ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6]``: write the compact results of every finished job
+  (see :mod:`rovermarl.analysis.results`).
+- ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
+  (see :mod:`rovermarl.analysis.claims`).
+
+Bad input exits with status 2 and one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from rovermarl.analysis.figures import PlotError
+from rovermarl.analysis.results import ResultsError
+
+PROG = "rovermarl.analysis"
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, no usage block
+        print(f"{self.prog}: error: {message}", file=sys.stderr)
+        sys.exit(2)
+
+
+def parser() -> argparse.ArgumentParser:
+    p = _Parser(prog=PROG, description="Compact results and claim statistics of the reproduction study.")
+    sub = p.add_subparsers(dest="command", required=True, parser_class=_Parser)
+    e = sub.add_parser("export", help="compact results (summaries, exact and log-grid curves) of a sweep dir")
+    e.add_argument("sweep", type=Path, help="sweep dir, e.g. outputs/paper")
+    e.add_argument("out", type=Path, help="results dir, e.g. results/paper")
+    e.add_argument("--generations", type=int, default=None, help="export only jobs with this budget")
+    e.add_argument("--no-fig6", dest="fig6", action="store_false", help="skip the Fig. 6 data (re-runs one run)")
+    c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
+    c.add_argument("results", type=Path, help="results dir written by `export`")
+    return p
+
+
+def main(argv=None) -> None:
+    args = parser().parse_args(argv)
+    try:
+        if args.command == "export":
+            from rovermarl.analysis.results import export
+            export(args.sweep, args.out, args.generations, fig6=args.fig6,
+                   log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        else:
+            from rovermarl.analysis.claims import claims
+            text, _ = claims(args.results)
+            print(text, end="")
+    except (ResultsError, PlotError) as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

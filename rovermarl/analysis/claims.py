@@ -1,0 +1,209 @@
+"""The statistics behind the paper's claims C1-C8, from exported results (:mod:`rovermarl.analysis.results`).
+
+``python -m rovermarl.analysis claims RESULTS_DIR`` prints them as markdown and writes ``claims.md`` and
+``claims.json`` into RESULTS_DIR. ``docs/REPRODUCTION.md`` quotes ``claims.md`` verbatim (a test checks it).
+
+Every statistic is over the 16 runs (seeds) of a job: medians of the score at fixed budgets with percentile-
+bootstrap 95% CIs; the runs reaching a level as a count with a Wilson 95% CI; the median time (generations) to
+a level, censored at the budget (a run that never gets there counts as ``never``); two-sided Mann-Whitney U
+between methods.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from rovermarl.analysis import stats
+from rovermarl.analysis.results import COUPLING_KINDS, Result, load
+from rovermarl.record.outputs import atomic_open, write_json
+
+OPTIMUM = {"solo": 4.0, "duo": 6.0}
+THRESHOLD = {"solo": 4.0, "duo": 5.0}     # the level whose first reaching the paper's dotted lines mark
+FIXED = ("k=1", "k=2", "k=4", "homogeneous")
+
+
+class Claims:
+    """Looks up exported jobs by (setup, label) and formats the statistics of each claim."""
+
+    def __init__(self, results: list[Result]):
+        self.jobs = {(r.setup, r.label): r for r in results}
+        self.budget = max(r.curves.generations for r in results)
+        self.budgets = sorted({max(self.budget // 100, 1), max(self.budget // 10, 1), self.budget})
+        self.data: dict = {"budget": self.budget, "budgets": self.budgets}
+        self.lines: list[str] = []
+
+    def get(self, setup: str, label: str) -> Result | None:
+        return self.jobs.get((setup, label))
+
+    def methods(self, setup: str) -> list[Result]:
+        order = [*FIXED, "adaptive", "k=1 strict", "k=2 strict", "k=4 strict"]
+        found = [r for (s, _), r in self.jobs.items() if s == setup]
+        return sorted(found, key=lambda r: (order.index(r.label) if r.label in order else len(order), r.label))
+
+    # ---- building blocks --------------------------------------------------------------------------------------
+    def table(self, setup: str) -> None:
+        """Per method: median score at each budget, runs reaching the optimum and threshold, time to threshold."""
+        opt, thr = OPTIMUM[setup], THRESHOLD[setup]
+        head = [f"median score @{b:,}" for b in self.budgets] + [f"runs reaching {opt:g}"]
+        head += [f"runs reaching {thr:g}"] if thr != opt else []
+        head += [f"median generations to {thr:g}"]
+        self.lines += [f"| {setup}: method | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+        rows = {}
+        for r in self.methods(setup):
+            at = r.curves.at(self.budgets)
+            med = [stats.median_ci(at[:, i]) for i in range(len(self.budgets))]
+            n = len(r.curves.seeds)
+            reach_opt = stats.wilson(int(np.isfinite(r.curves.first(opt)).sum()), n)
+            times = r.curves.first(thr)
+            reach_thr = stats.wilson(int(np.isfinite(times).sum()), n)
+            t = stats.median_ci(times)
+            cells = [m.fmt(3) for m in med] + [_count(reach_opt, n)]
+            cells += [_count(reach_thr, n)] if thr != opt else []
+            self.lines.append(f"| {r.label} | " + " | ".join([*cells, t.fmt(3)]) + " |")
+            rows[r.label] = {"median_score": {str(b): m.as_dict() for b, m in zip(self.budgets, med, strict=True)},
+                             f"reach_{opt:g}": reach_opt.as_dict() | {"runs": n},
+                             f"reach_{thr:g}": reach_thr.as_dict() | {"runs": n}, f"time_to_{thr:g}": t.as_dict()}
+        self.lines.append("")
+        self.data.setdefault("tables", {})[setup] = rows
+
+    def compare(self, claim: str, setup: str, a: str, b: str, what: str) -> stats.Test | None:
+        """Mann-Whitney U of method ``a`` against ``b``: ``what`` is ``final`` or ``time:LEVEL``."""
+        ra, rb = self.get(setup, a), self.get(setup, b)
+        if ra is None or rb is None:
+            return None
+        xa, xb = self.values(ra, what), self.values(rb, what)
+        test = stats.mann_whitney(xa, xb)
+        self.lines.append(f"- {setup}, {_what(what)}: {a} vs {b}: {test.fmt()}")
+        self.data.setdefault(claim, {}).setdefault("tests", []).append(
+            {"setup": setup, "a": a, "b": b, "what": what, **test.as_dict()})
+        return test
+
+    def values(self, r: Result, what: str) -> np.ndarray:
+        if what == "final":
+            return r.curves.at([r.curves.generations])[:, 0]
+        return r.curves.first(float(what.split(":")[1]))
+
+    def note(self, claim: str, key: str, text: str, value) -> None:
+        self.lines.append(f"- {text}")
+        self.data.setdefault(claim, {})[key] = value
+
+    # ---- the claims ---------------------------------------------------------------------------------------------
+    def c1_c3(self) -> None:
+        self.lines += ["### C1-C3: setup solo", ""]
+        self.table("solo")
+        for other in ("k=2", "k=4", "homogeneous", "adaptive"):
+            self.compare("C1", "solo", "k=1", other, "time:4")
+        for other in ("k=4", "homogeneous"):
+            self.compare("C3", "solo", "k=1", other, "final")
+        k1, k2 = self.get("solo", "k=1"), self.get("solo", "k=2")
+        if k1 is not None and k2 is not None:
+            ratio = stats.ratio_ci(k1.curves.first(4), k2.curves.first(4))
+            self.note("C2", "time_ratio", f"solo, median generations to 4, k=2 / k=1: {ratio.fmt(3)}",
+                      ratio.as_dict())
+        self.lines.append("")
+
+    def c4_c6(self) -> None:
+        self.lines += ["### C4-C6: setup duo", ""]
+        self.table("duo")
+        for a, b in (("k=1", "k=2"), ("k=1", "k=4"), ("k=1", "homogeneous"), ("k=2", "homogeneous")):
+            self.compare("C4", "duo", a, b, "final")
+        for k in ("k=1", "k=2", "k=4"):
+            self.compare("C6", "duo", k, f"{k} strict", "final")
+            self.compare("C6", "duo", k, f"{k} strict", "time:5")
+        self.lines.append("")
+
+    def c7(self) -> None:
+        self.lines += ["### C7: EXP3-adaptive against the best fixed k", ""]
+        for setup in ("solo", "duo"):
+            thr = THRESHOLD[setup]
+            fixed = [r for r in (self.get(setup, k) for k in FIXED) if r is not None]
+            if not fixed or self.get(setup, "adaptive") is None:
+                continue
+            best = min(fixed, key=lambda r: (np.median(r.curves.first(thr)), -np.median(self.values(r, "final"))))
+            self.note("C7", f"best_fixed_{setup}", f"{setup}: best fixed method (median generations to {thr:g}): "
+                      f"{best.label}", best.label)
+            self.compare("C7", setup, "adaptive", best.label, f"time:{thr:g}")
+            self.compare("C7", setup, "adaptive", best.label, "final")
+        self.lines.append("")
+
+    def c8(self) -> None:
+        self.lines += ["### C8: phenotypic coupling under k=1", "",
+                       "Per run, over its generations that mutated one rover: the share of the episodes in which at "
+                       "least one other rover ends at a different POI (or none) than under the parent team. Median "
+                       "over runs [bootstrap 95% CI]; in parentheses, the median over runs of the fraction of "
+                       "updates with at least one such episode; n is the total number of updates.", "",
+                       "| job | accepted, score rose | accepted, score equal | rejected | accepted (all) vs rejected |",
+                       "|---|---|---|---|---|"]
+        out = {}
+        for r in sorted(self.jobs.values(), key=lambda r: (r.setup != "solo", r.name)):
+            coupling = r.summary.get("coupling")
+            if not coupling or not r.label.startswith("k=1"):
+                continue
+            row, per_kind = [], {}
+            for kind in COUPLING_KINDS:
+                runs = [c[kind] for c in coupling.values() if c[kind]["n"]]
+                share = stats.median_ci([c["share"] for c in runs]) if runs else None
+                anyf = float(np.median([c["any"] for c in runs])) if runs else None
+                n = sum(c[kind]["n"] for c in coupling.values())
+                row.append(f"{share.fmt(2)} ({anyf:.2f}), n={n:,}" if share else "none")
+                per_kind[kind] = {"share": share.as_dict() if share else None, "any": anyf, "n": n}
+            accepted = [_accepted_share(c) for c in coupling.values()]
+            accepted = [a for a in accepted if a is not None]
+            rejected = [c["rejected"]["share"] for c in coupling.values() if c["rejected"]["n"]]
+            test = stats.mann_whitney(accepted, rejected) if accepted and rejected else None
+            row.append(test.fmt() if test else "-")
+            self.lines.append(f"| {r.setup} {r.label} | " + " | ".join(row) + " |")
+            out[f"{r.setup} {r.label}"] = per_kind | {"accepted_vs_rejected": test.as_dict() if test else None}
+        self.data["C8"] = out
+        self.lines.append("")
+
+    def compute(self) -> None:
+        self.lines += ["### Compute", ""]
+        totals = {"team_evals": sum(r.summary["compute"]["team_evals"] for r in self.jobs.values()),
+                  "wall_time_s": sum(r.summary["compute"]["wall_time_s"] for r in self.jobs.values()),
+                  "runs": sum(len(r.curves.seeds) for r in self.jobs.values()), "jobs": len(self.jobs)}
+        steps = {r.summary.get("episodes", 16) for r in self.jobs.values()}
+        self.lines.append(f"- {totals['jobs']} jobs, {totals['runs']} runs of {self.budget:,} generations: "
+                          f"{totals['team_evals']:,} team evaluations ({16 * 15 * 4 * totals['team_evals']:,} "
+                          f"agent-steps at 16 episodes x 15 steps x 4 rovers), {totals['wall_time_s'] / 3600:.2f} h "
+                          f"of job wall time on this machine" if steps == {16} else
+                          f"- {totals['jobs']} jobs: {totals['team_evals']:,} team evaluations")
+        self.data["compute"] = totals
+        self.lines.append("")
+
+    def run(self) -> tuple[str, dict]:
+        self.lines += [f"Budget: {self.budget:,} generations (team evaluations) per run; scores at "
+                       + ", ".join(f"{b:,}" for b in self.budgets) + " generations. 95% CIs in brackets.", ""]
+        self.c1_c3()
+        self.c4_c6()
+        self.c7()
+        self.c8()
+        self.compute()
+        return "\n".join(self.lines).rstrip() + "\n", self.data
+
+
+def _accepted_share(c: dict) -> float | None:
+    n = c["improved"]["n"] + c["neutral"]["n"]
+    if not n:
+        return None
+    return sum((c[k]["share"] or 0.0) * c[k]["n"] for k in ("improved", "neutral")) / n
+
+
+def _count(est: stats.Estimate, n: int) -> str:
+    return f"{round(est.value * n)}/{n} [{est.low * n:.1f}, {est.high * n:.1f}]"
+
+
+def _what(what: str) -> str:
+    return "final score" if what == "final" else f"generations to {what.split(':')[1]}"
+
+
+def claims(path: Path) -> tuple[str, dict]:
+    """Compute the claims report of the results dir ``path``; writes ``claims.md`` and ``claims.json`` there."""
+    text, data = Claims(load(path)).run()
+    with atomic_open(Path(path) / "claims.md", "w") as f:
+        f.write(text)
+    write_json(Path(path) / "claims.json", json.loads(json.dumps(data, default=float)))
+    return text, data
