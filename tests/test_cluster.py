@@ -54,3 +54,14 @@ def test_stop_leaves_others_alone():
     finally:
         other.kill()
         other.wait()
+
+
+def test_cluster_launcher_config_is_valid_for_ray_up():
+    """launchers/cluster.yaml passes Ray's own cluster-config schema, and the commands it documents exist."""
+    import yaml
+    from ray.autoscaler._private.util import prepare_config, validate_config
+    text = (ROOT / "launchers" / "cluster.yaml").read_text()
+    cfg = yaml.safe_load(text)
+    validate_config(prepare_config(cfg))                                 # fills the defaults of `ray up`
+    assert cfg["provider"]["type"] == "local" and cfg["file_mounts"]["~/rovermarl"] == "."
+    assert "launchers/paper.sh ray.address=auto" in text and (ROOT / "launchers" / "paper.sh").is_file()
