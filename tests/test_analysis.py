@@ -190,3 +190,32 @@ def test_reproduction_report_quotes_the_committed_results(tmp_path):
     text, _ = claims(tmp_path / "paper")                                  # recomputed from the committed results
     assert text == (RESULTS / "claims.md").read_text()
     assert text in (ROOT / "docs" / "REPRODUCTION.md").read_text()
+
+
+# ---- the k-selector benchmark ----------------------------------------------------------------------------------
+def test_selectors_launcher_runs_every_selector_and_writes_the_table(tmp_path):
+    env = {**os.environ, "GENERATIONS": "40", "SEEDS": "2", "OUT": str(tmp_path / "sweep"),
+           "RESULTS": str(tmp_path / "results"), "PYTHON": sys.executable}
+    proc = subprocess.run(["bash", str(ROOT / "launchers" / "selectors.sh"), "parallel=serial", "record=off"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    text = (tmp_path / "results" / "selectors.md").read_text()
+    methods = ["k=1", "k=2", "k=3", "k=4", "homogeneous", "adaptive", "ucb1", "thompson", "egreedy", "exp3s",
+               "schedule"]
+    for setup in ("solo", "duo", "trio"):
+        section = text.split(f"### {setup}\n")[1].split("###")[0]
+        rows = [line.split(" | ")[0].lstrip("| ") for line in section.splitlines() if line.startswith("| ")][1:]
+        assert rows == methods, setup
+    assert "final score vs adaptive" in text and text in proc.stdout
+
+
+SELECTOR_RESULTS = ROOT / "results" / "selectors"
+
+
+@pytest.mark.skipif(not (SELECTOR_RESULTS / "selectors.md").is_file(), reason="no committed results/selectors yet")
+def test_selectors_report_quotes_the_committed_results(tmp_path):
+    from rovermarl.analysis.claims import selectors
+    shutil.copytree(SELECTOR_RESULTS, tmp_path / "sel", ignore=shutil.ignore_patterns("figures"))
+    text, _ = selectors(tmp_path / "sel")
+    assert text == (SELECTOR_RESULTS / "selectors.md").read_text()
+    assert text in (ROOT / "docs" / "SELECTORS.md").read_text()

@@ -25,6 +25,8 @@ from rovermarl.config import group_names
 from rovermarl.env.world import CONF_DIR
 from tests.conftest import run_cli
 
+K_OPTIONS = "1, 2, 3, 4, adaptive, egreedy, exp3s, schedule, thompson, ucb1"
+
 TRAIN = "rovermarl.train: error: "
 OPTIONS = {g: sorted(p.stem for p in (CONF_DIR / g).glob("*.yaml")) for g in group_names()}
 SETTINGS = settings(max_examples=30, deadline=None, derandomize=True,
@@ -223,16 +225,16 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["ray.num_cpus=0"], "ray.num_cpus=0: must be an integer >= 1"),
     (["setup.value=[-1,1,1,1,1,1,1,1,1,1]"], "setup.value[0]=-1: must be a finite number >= 0"),
     # unknown group options
-    (["k=9"], "k=9: no such option; allowed: 1, 2, 3, 4, adaptive"),
-    (["setup=trio"], "setup=trio: no such option; allowed: duo, solo"),
+    (["k=9"], "k=9: no such option; allowed: " + K_OPTIONS),
+    (["setup=quartet"], "setup=quartet: no such option; allowed: duo, solo, solo20, trio, trio6"),
     (["team=mixed"], "team=mixed: no such option"),
     (["selection=lax"], "selection=lax: no such option"),
     (["parallel=dask"], "parallel=dask: no such option"),
     (["record=verbose"], "record=verbose: no such option"),
-    (["k=null"], "k=None: must name an option of the group: 1, 2, 3, 4, adaptive"),
+    (["k=null"], "k=None: must name an option of the group: " + K_OPTIONS),
     (["team=null"], "team=None: must name an option of the group"),
     (["k=[1,2]"], "k=[1, 2]: must name an option of the group"),
-    (["-m", "k=choice(1,9)"], "k=1: must name an option of the group: 1, 2, 3, 4, adaptive (quote a number: k='1')"),
+    (["-m", "k=choice(1,9)"], "k=1: must name an option of the group: " + K_OPTIONS + " (quote a number: k='1')"),
     (["--config-name=nope"], "--config-name=nope: no such config"),
     (["--config-dir=/nonexistent/conf"], "--config-dir=/nonexistent/conf: no such directory"),
     # extra keys

@@ -1,13 +1,12 @@
 """End to end: the CLI sweep, serial == Ray, and a user selector from outside the package."""
 
 import json
-import textwrap
 
 import numpy as np
 
 from rovermarl.job import run_job
 from rovermarl.record.outputs import CURVE_KEYS
-from tests.conftest import make_cfg, run_cli
+from tests.conftest import ROOT, make_cfg, run_cli
 
 
 def test_paper_sweep_cli_tiny_budget(tmp_path):
@@ -59,36 +58,22 @@ def test_serial_equals_ray(ray_session, tmp_path):
             np.testing.assert_array_equal(a[s][key], b[s][key])
 
 
-USER_SELECTOR = '''
-from rovermarl.evolution.selectors import KSelector
-
-
-class RoundRobin(KSelector):
-    """Cycle through k = 1..N."""
-
-    def __init__(self, n_agents, f_max=1.0, start=1):
-        super().__init__(n_agents, f_max)
-        self.arms = tuple(range(1, n_agents + 1))
-        self.next = start
-
-    def choose(self, rng):
-        k = self.next
-        self.next = k % self.n_agents + 1
-        return k
-'''
+def readme_block(first_line: str) -> str:
+    """The README code block that starts with ``first_line``."""
+    text = (ROOT / "README.md").read_text()
+    start = text.index(first_line)
+    return text[start:text.index("```", start)]
 
 
 def test_user_selector_on_searchpath_without_editing_the_package(tmp_path):
-    (tmp_path / "my_selectors.py").write_text(USER_SELECTOR)
+    """The README's selector example, outside the package, on Hydra's search path, on Ray."""
+    (tmp_path / "my_selectors.py").write_text(readme_block("# my_selectors.py"))
     (tmp_path / "my_conf" / "k").mkdir(parents=True)
-    (tmp_path / "my_conf" / "k" / "roundrobin.yaml").write_text(textwrap.dedent("""\
-        _target_: my_selectors.RoundRobin
-        start: 2
-        """))
-    proc = run_cli("k=roundrobin", f"hydra.searchpath=[file://{tmp_path / 'my_conf'}]", "generations=10",
+    (tmp_path / "my_conf" / "k" / "myschedule.yaml").write_text(readme_block("# my_conf/k/myschedule.yaml"))
+    proc = run_cli("k=myschedule", f"hydra.searchpath=[file://{tmp_path / 'my_conf'}]", "generations=12",
                    "seeds=2", f"hydra.run.dir={tmp_path / 'run'}", "ray.num_cpus=2", cwd=tmp_path,
                    env={"PYTHONPATH": str(tmp_path)})
     assert proc.returncode == 0, proc.stderr[-3000:]
     with np.load(tmp_path / "run" / "runs" / "seed_001" / "curve.npz") as c:
-        np.testing.assert_array_equal(c["k"], [2, 3, 4, 1, 2, 3, 4, 1, 2, 3])
-    assert json.loads((tmp_path / "run" / "summary.json").read_text())["choices"]["k"] == "roundrobin"
+        np.testing.assert_array_equal(c["k"], [4, 4, 4, 3, 3, 3, 2, 2, 2, 1, 1, 1])
+    assert json.loads((tmp_path / "run" / "summary.json").read_text())["choices"]["k"] == "myschedule"

@@ -169,7 +169,30 @@ def test_world_rejects_bad_values():
         make_world("solo", coupling=[5] + [1] * 9)
     with pytest.raises(ConfigError, match="env.obs_radius"):
         make_world("solo", obs_radius=0)
-    with pytest.raises(ConfigError, match="setup=trio"):
-        make_world("trio")
+    with pytest.raises(ConfigError, match="setup=quartet"):
+        make_world("quartet")
     with pytest.raises(ValueError, match="genomes must have shape"):
         make_world("solo").evaluate(np.zeros((3, 658)), make_world("solo").initial_conditions())
+
+
+@pytest.mark.parametrize("n", [3, 6, 8])
+def test_start_squares_generalise_the_quadrants(n):
+    """For N != 4, rover i starts in the quadrant square turned so its diagonal bisects heading sector i."""
+    w = make_world("solo", n_rovers=n)
+    xy, heading = w.initial_conditions(0, n=4000)
+    phi = w.start_rotation
+    c, s = np.cos(-phi), np.sin(-phi)
+    back = np.stack([xy[..., 0] * c - xy[..., 1] * s, xy[..., 0] * s + xy[..., 1] * c], axis=-1)
+    assert back.min() > -1e-12 and back.max() < 0.5 + 1e-12
+    assert np.all(np.abs(back.mean(axis=0) - 0.25) < 0.02)                   # uniform over the square
+    sector = 2 * np.pi / n
+    assert np.all((heading >= sector * np.arange(n)) & (heading <= sector * (np.arange(n) + 1)))
+    bisector = np.arctan2(xy[..., 1].mean(axis=0), xy[..., 0].mean(axis=0)) % (2 * np.pi)
+    np.testing.assert_allclose(bisector, (np.arange(n) + 0.5) * sector, atol=0.05)
+    assert w.start_squares.shape == (n, 5, 2)
+
+
+def test_four_rover_start_squares_are_the_quadrants():
+    w = make_world("solo")
+    np.testing.assert_allclose(w.start_squares[:, 2], [[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
+    np.testing.assert_allclose(w.start_rotation, np.arange(4) * np.pi / 2)

@@ -1,9 +1,10 @@
-"""``python -m rovermarl.analysis {export,claims} ...``: compact results of a sweep, and the claims report.
+"""``python -m rovermarl.analysis {export,claims,selectors} ...``: compact results of a sweep, and the claims report.
 
 - ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6]``: write the compact results of every finished job
   (see :mod:`rovermarl.analysis.results`).
 - ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
   (see :mod:`rovermarl.analysis.claims`).
+- ``selectors RESULTS_DIR [--against METHOD]``: the k-selector comparison; ``selectors.md`` and ``.json``.
 
 Bad input exits with status 2 and one line on stderr.
 """
@@ -36,6 +37,9 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--no-fig6", dest="fig6", action="store_false", help="skip the Fig. 6 data (re-runs one run)")
     c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
     c.add_argument("results", type=Path, help="results dir written by `export`")
+    s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
+    s.add_argument("results", type=Path, help="results dir written by `export`")
+    s.add_argument("--against", default="adaptive", help="method the others are tested against")
     return p
 
 
@@ -46,9 +50,13 @@ def main(argv=None) -> None:
             from rovermarl.analysis.results import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6,
                    log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
-        else:
+        elif args.command == "claims":
             from rovermarl.analysis.claims import claims
             text, _ = claims(args.results)
+            print(text, end="")
+        else:
+            from rovermarl.analysis.claims import selectors
+            text, _ = selectors(args.results, args.against)
             print(text, end="")
     except (ResultsError, PlotError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)

@@ -20,9 +20,11 @@ from rovermarl.analysis import stats
 from rovermarl.analysis.results import COUPLING_KINDS, Result, load
 from rovermarl.record.outputs import atomic_open, write_json
 
-OPTIMUM = {"solo": 4.0, "duo": 6.0}
-THRESHOLD = {"solo": 4.0, "duo": 5.0}     # the level whose first reaching the paper's dotted lines mark
+OPTIMUM = {"solo": 4.0, "duo": 6.0, "trio": 5.0}
+THRESHOLD = {"solo": 4.0, "duo": 5.0, "trio": 5.0}  # the level whose first reaching the paper's dotted lines mark
 FIXED = ("k=1", "k=2", "k=4", "homogeneous")
+ORDER = ("k=1", "k=2", "k=3", "k=4", "homogeneous", "adaptive", "ucb1", "thompson", "egreedy", "exp3s", "schedule",
+         "k=1 strict", "k=2 strict", "k=4 strict")
 
 
 class Claims:
@@ -39,17 +41,34 @@ class Claims:
         return self.jobs.get((setup, label))
 
     def methods(self, setup: str) -> list[Result]:
-        order = [*FIXED, "adaptive", "k=1 strict", "k=2 strict", "k=4 strict"]
         found = [r for (s, _), r in self.jobs.items() if s == setup]
-        return sorted(found, key=lambda r: (order.index(r.label) if r.label in order else len(order), r.label))
+        return sorted(found, key=lambda r: (ORDER.index(r.label) if r.label in ORDER else len(ORDER), r.label))
+
+    def setups(self) -> list[str]:
+        names = dict.fromkeys(s for s, _ in self.jobs)
+        return sorted(names, key=lambda s: (list(OPTIMUM).index(s) if s in OPTIMUM else len(OPTIMUM), s))
+
+    def levels(self, setup: str) -> tuple[float, float]:
+        """(optimum, threshold) of a setup: the paper's, or the world's maximum return for other setups."""
+        if setup in OPTIMUM:
+            return OPTIMUM[setup], THRESHOLD[setup]
+        from omegaconf import OmegaConf
+
+        from rovermarl.env import World
+        r = self.methods(setup)[0]
+        best = World.from_config(OmegaConf.load(r.path / "config.yaml")).max_return
+        return best, best
 
     # ---- building blocks --------------------------------------------------------------------------------------
-    def table(self, setup: str) -> None:
-        """Per method: median score at each budget, runs reaching the optimum and threshold, time to threshold."""
-        opt, thr = OPTIMUM[setup], THRESHOLD[setup]
+    def table(self, setup: str, against: str | None = None) -> None:
+        """Per method: median score at each budget, runs reaching the optimum and threshold, time to threshold;
+        with ``against``, Mann-Whitney U of each method's final scores and times against that method's."""
+        opt, thr = self.levels(setup)
         head = [f"median score @{b:,}" for b in self.budgets] + [f"runs reaching {opt:g}"]
         head += [f"runs reaching {thr:g}"] if thr != opt else []
         head += [f"median generations to {thr:g}"]
+        base = self.get(setup, against) if against else None
+        head += [f"final score vs {against}", f"generations to {thr:g} vs {against}"] if base else []
         self.lines += [f"| {setup}: method | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
         rows = {}
         for r in self.methods(setup):
@@ -62,7 +81,11 @@ class Claims:
             t = stats.median_ci(times)
             cells = [m.fmt(3) for m in med] + [_count(reach_opt, n)]
             cells += [_count(reach_thr, n)] if thr != opt else []
-            self.lines.append(f"| {r.label} | " + " | ".join([*cells, t.fmt(3)]) + " |")
+            cells.append(t.fmt(3))
+            if base is not None:
+                tests = [stats.mann_whitney(self.values(r, w), self.values(base, w)) for w in ("final", f"time:{thr}")]
+                cells += ["-" if r is base else f"p{stats.format_p(x.p)}, P(a>b)={x.effect:.2f}" for x in tests]
+            self.lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
             rows[r.label] = {"median_score": {str(b): m.as_dict() for b, m in zip(self.budgets, med, strict=True)},
                              f"reach_{opt:g}": reach_opt.as_dict() | {"runs": n},
                              f"reach_{thr:g}": reach_thr.as_dict() | {"runs": n}, f"time_to_{thr:g}": t.as_dict()}
@@ -160,17 +183,35 @@ class Claims:
         self.data["C8"] = out
         self.lines.append("")
 
+    def plateau(self) -> None:
+        """Were the curves still rising? Medians at half and full budget, and the runs that rose in the second half."""
+        half = self.budget // 2
+        self.lines += ["### Still rising at the budget?", "",
+                       f"| job | median score @{half:,} | median score @{self.budget:,} | runs that rose after "
+                       f"{half:,} |", "|---|---|---|---|"]
+        out = {}
+        for setup in ("solo", "duo"):
+            for r in self.methods(setup):
+                at = r.curves.at([half, self.budget])
+                rose = int((at[:, 1] > at[:, 0]).sum())
+                self.lines.append(f"| {setup} {r.label} | {np.median(at[:, 0]):.4g} | {np.median(at[:, 1]):.4g} | "
+                                  f"{rose}/{len(at)} |")
+                out[f"{setup} {r.label}"] = {"median_half": float(np.median(at[:, 0])),
+                                             "median_full": float(np.median(at[:, 1])), "rose": rose}
+        self.data["plateau"] = out
+        self.lines.append("")
+
     def compute(self) -> None:
         self.lines += ["### Compute", ""]
-        totals = {"team_evals": sum(r.summary["compute"]["team_evals"] for r in self.jobs.values()),
-                  "wall_time_s": sum(r.summary["compute"]["wall_time_s"] for r in self.jobs.values()),
-                  "runs": sum(len(r.curves.seeds) for r in self.jobs.values()), "jobs": len(self.jobs)}
-        steps = {r.summary.get("episodes", 16) for r in self.jobs.values()}
+        jobs = self.jobs.values()
+        totals = {"team_evals": sum(r.summary["compute"]["team_evals"] for r in jobs),
+                  "agent_steps": sum(r.summary["compute"].get("agent_steps") or 0 for r in jobs),
+                  "wall_time_s": sum(r.summary["compute"]["wall_time_s"] for r in jobs),
+                  "runs": sum(len(r.curves.seeds) for r in jobs), "jobs": len(self.jobs)}
         self.lines.append(f"- {totals['jobs']} jobs, {totals['runs']} runs of {self.budget:,} generations: "
-                          f"{totals['team_evals']:,} team evaluations ({16 * 15 * 4 * totals['team_evals']:,} "
-                          f"agent-steps at 16 episodes x 15 steps x 4 rovers), {totals['wall_time_s'] / 3600:.2f} h "
-                          f"of job wall time on this machine" if steps == {16} else
-                          f"- {totals['jobs']} jobs: {totals['team_evals']:,} team evaluations")
+                          f"{totals['team_evals']:,} team evaluations ({totals['agent_steps']:,} agent-steps), "
+                          f"{totals['wall_time_s'] / 3600:.2f} h of summed job wall time (from each job's "
+                          "`invocations.jsonl`)")
         self.data["compute"] = totals
         self.lines.append("")
 
@@ -181,6 +222,7 @@ class Claims:
         self.c4_c6()
         self.c7()
         self.c8()
+        self.plateau()
         self.compute()
         return "\n".join(self.lines).rstrip() + "\n", self.data
 
@@ -198,6 +240,24 @@ def _count(est: stats.Estimate, n: int) -> str:
 
 def _what(what: str) -> str:
     return "final score" if what == "final" else f"generations to {what.split(':')[1]}"
+
+
+def selectors(path: Path, against: str = "adaptive") -> tuple[str, dict]:
+    """The k-selector comparison of the results dir ``path``: per setup, every method's table row, with
+    Mann-Whitney U against ``against`` (the paper's EXP3); writes ``selectors.md`` and ``selectors.json``."""
+    c = Claims(load(path))
+    c.lines += [f"Budget: {c.budget:,} generations per run; scores at " + ", ".join(f"{b:,}" for b in c.budgets) +
+                f" generations. 95% CIs in brackets; p: two-sided Mann-Whitney U against `{against}` (for "
+                "generations, P(a>b) below 0.5 means faster; never-reached counts as slowest).", ""]
+    for setup in c.setups():
+        c.lines += [f"### {setup}", ""]
+        c.table(setup, against)
+    c.compute()
+    text = "\n".join(c.lines).rstrip() + "\n"
+    with atomic_open(Path(path) / "selectors.md", "w") as f:
+        f.write(text)
+    write_json(Path(path) / "selectors.json", json.loads(json.dumps(c.data, default=float)))
+    return text, c.data
 
 
 def claims(path: Path) -> tuple[str, dict]:

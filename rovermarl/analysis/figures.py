@@ -33,13 +33,13 @@ from omegaconf import OmegaConf
 
 from rovermarl.record.outputs import atomic_open, first_reaching, write_json
 
-DEFAULT_THRESHOLDS = {"solo": 4.0, "duo": 5.0}
+DEFAULT_THRESHOLDS = {"solo": 4.0, "duo": 5.0, "trio": 5.0}
 QUARTILES = (0.25, 0.5, 0.75)
 MAX_POINTS = 2000
 FORMATS = ("png", "pdf")
 UPDATE_EPISODES = 4
 _NOT_METHOD = ("parallel", "ray", "hydra", "setup", "record", "checkpoint", "resume")  # never tell methods apart
-_SETUP_ORDER = {"solo": 0, "duo": 1}  # the paper's Setup 1 and 2 first
+_SETUP_ORDER = {"solo": 0, "duo": 1, "trio": 2}  # the paper's Setup 1 and 2 first
 _POI_COLOUR = {1: "tab:olive", 2: "tab:purple"}
 
 

@@ -150,8 +150,11 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
         if c is not None:
             couplings[str(r.seed)] = c
     summary = json.loads((job.path / "summary.json").read_text()) if job.finished else {}
+    compute = _compute(job)
+    world = job.world()
+    compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers if world else None
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
-                    "episodes": episodes, "source": job.name, "compute": _compute(job)})
+                    "episodes": episodes, "source": job.name, "compute": compute})
     if couplings:
         summary["coupling"] = couplings
     out.mkdir(parents=True, exist_ok=True)
@@ -171,7 +174,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     if not jobs:
         raise ResultsError(f"no finished job in {sweep}" + (f" with generations={generations}" if generations else ""))
     out = Path(out)
-    totals = {"jobs": {}, "team_evals": 0, "wall_time_s": 0.0}
+    totals = {"jobs": {}, "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
     named = {}
     for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
         group = [j for j in jobs if j.setup == setup]
@@ -182,10 +185,8 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
         totals["jobs"][job.name] = summary["compute"]
         totals["team_evals"] += summary["compute"]["team_evals"]
         totals["wall_time_s"] += summary["compute"]["wall_time_s"]
+        totals["agent_steps"] += summary["compute"]["agent_steps"] or 0
         log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
-    world = jobs[0].world()
-    steps = world.steps * world.episodes * world.n_rovers if world else None
-    totals["agent_steps"] = totals["team_evals"] * steps if steps else None
     write_json(out / "compute.json", totals)
     if fig6:
         duo_k1 = [j for j in jobs if j.setup == "duo" and j.label == "k=1"]
@@ -277,6 +278,7 @@ class Result:
     curves: Curves
     grid: np.ndarray
     probs: np.ndarray | None
+    path: Path
 
 
 def load(path: Path) -> list[Result]:
@@ -291,7 +293,8 @@ def load(path: Path) -> list[Result]:
             curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
             probs = z["probs"] if "probs" in z.files else None
             grid = z["grid"]
-        out.append(Result(curves_file.parent.name, summary["label"], summary["setup"], summary, curves, grid, probs))
+        out.append(Result(curves_file.parent.name, summary["label"], summary["setup"], summary, curves, grid, probs,
+                          curves_file.parent))
     if not out:
         raise ResultsError(f"no exported job (*/curves.npz) in {path}; run `python -m rovermarl.analysis export`")
     return out

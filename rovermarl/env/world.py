@@ -130,22 +130,35 @@ class World:
 
     # ---- initial conditions -------------------------------------------------------------------
     @property
-    def quadrant_signs(self) -> np.ndarray:
-        """(N, 2): the signs of x and y in rover ``i``'s start quadrant ``i mod 4`` (0: ++, 1: -+, 2: --, 3: +-)."""
-        quadrant = np.arange(self.n_rovers) % 4
-        return np.stack([np.where((quadrant == 0) | (quadrant == 3), 1.0, -1.0),
-                         np.where(quadrant <= 1, 1.0, -1.0)], axis=1)
+    def start_rotation(self) -> np.ndarray:
+        """(N,): rover ``i``'s start square is ``[0, start_box]^2`` turned by this angle about the origin, so that
+        its diagonal bisects heading sector ``i`` (for N = 4: the square of quadrant ``i``)."""
+        return (np.arange(self.n_rovers) + 0.5) * (2 * np.pi / self.n_rovers) - np.pi / 4
+
+    @property
+    def start_squares(self) -> np.ndarray:
+        """(N, 5, 2): the corners of each rover's start square, as a closed outline."""
+        unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=np.float64) * self.start_box
+        return self._turn(np.broadcast_to(unit, (self.n_rovers, 5, 2)).transpose(1, 0, 2)).transpose(1, 0, 2)
+
+    def _turn(self, xy: np.ndarray) -> np.ndarray:
+        """Points of quadrant-0 squares into each rover's square: xy (..., N, 2). For N = 4 the turns are exact
+        sign flips (SPEC's quadrants: 0: x, y >= 0; 1: x <= 0, y >= 0; 2: x, y <= 0; 3: x >= 0, y <= 0)."""
+        if self.n_rovers == 4:
+            return xy * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
+        c, s = np.cos(self.start_rotation), np.sin(self.start_rotation)
+        return np.stack([xy[..., 0] * c - xy[..., 1] * s, xy[..., 0] * s + xy[..., 1] * c], axis=-1)
 
     def initial_conditions(self, seed=0, n: int | None = None) -> InitialConditions:
         """Draw ``n`` (default ``episodes``) starts: xy (n, N, 2), heading (n, N).
 
-        Rover ``i`` starts uniformly in the ``start_box`` square of quadrant ``i mod 4`` (0: x, y >= 0;
-        1: x <= 0, y >= 0; 2: x, y <= 0; 3: x >= 0, y <= 0), heading uniform in ``[2 pi i/N, 2 pi (i+1)/N]``.
-        ``seed`` is an int, a ``SeedSequence`` or a ``Generator``.
+        Rover ``i`` starts uniformly in its ``start_box`` square (:attr:`start_rotation`; quadrant ``i`` for N = 4),
+        heading uniform in its sector ``[2 pi i/N, 2 pi (i+1)/N]``. ``seed`` is an int, a ``SeedSequence`` or a
+        ``Generator``.
         """
         rng = np.random.default_rng(seed)
         n = self.episodes if n is None else n
-        xy = rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)) * self.quadrant_signs
+        xy = self._turn(rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)))
         sector = 2 * np.pi / self.n_rovers
         low = sector * np.arange(self.n_rovers)
         heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))
@@ -230,8 +243,13 @@ def make_world(setup: str = "solo", **overrides) -> World:
     if not path.exists():
         options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))
         raise errors.ConfigError("setup", setup, "unknown setup; allowed: " + ", ".join(options))
-    cfg = OmegaConf.create({"setup": OmegaConf.load(path), "env": OmegaConf.load(CONF_DIR / "env" / "rovers.yaml"),
-                            "policy": OmegaConf.load(CONF_DIR / "policy" / "mlp.yaml")})
+    setup_file = OmegaConf.load(path)
+    env = OmegaConf.load(CONF_DIR / "env" / "rovers.yaml")
+    if "setup" in setup_file:                                  # `# @package _global_`: it also sets env keys
+        env = OmegaConf.merge(env, setup_file.get("env") or {})
+        setup_file = setup_file.setup
+    policy = OmegaConf.load(CONF_DIR / "policy" / "mlp.yaml")
+    cfg = OmegaConf.create({"setup": setup_file, "env": env, "policy": policy})
     for key, val in overrides.items():
         section = "setup" if key in ("coupling", "value", "name") else "policy" if key == "hidden" else "env"
         cfg[section][key] = val

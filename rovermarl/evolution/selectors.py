@@ -39,6 +39,22 @@ class KSelector:
     def load_state_dict(self, state: dict) -> None:
         pass
 
+    def _reward_rule(self, reward: str) -> str:
+        return errors.choice("reward", reward, ("improved", "gain"))
+
+    def reward(self, f_child: float, f_parent: float) -> float:
+        """The bandit reward of a generation: 1 if the team improved, else 0 (``reward_rule="improved"``), or the
+        normalised gain ``max(0, f_child - f_parent) / f_max`` (``"gain"``)."""
+        if getattr(self, "reward_rule", "improved") == "improved":
+            return 1.0 if f_child > f_parent else 0.0
+        return max(0.0, f_child - f_parent) / self.f_max
+
+    def _draw(self, probs: np.ndarray, rng: np.random.Generator) -> int:
+        """An arm drawn with probabilities ``probs`` (K,), from one uniform number."""
+        cdf = np.cumsum(probs)
+        a = int(np.searchsorted(cdf, rng.random() * cdf[-1], side="right"))
+        return self.arms[min(a, len(self.arms) - 1)]
+
     def _arms(self, arms) -> tuple[int, ...]:
         """Validated arm list; ``None`` means 1..N."""
         if arms is None:
@@ -78,7 +94,7 @@ class EXP3(KSelector):
         super().__init__(n_agents, f_max)
         self.gamma = errors.number("gamma", gamma, 0, 1, lo_open=True)
         self.arms = self._arms(arms)
-        self.reward = errors.choice("reward", reward, ("improved", "gain"))
+        self.reward_rule = self._reward_rule(reward)
         self.log_w = np.zeros(len(self.arms))
         self._probs = self._compute_probs()
 
@@ -91,15 +107,10 @@ class EXP3(KSelector):
         return (1.0 - self.gamma) * w / w.sum() + self.gamma / len(self.arms)
 
     def choose(self, rng):
-        cdf = np.cumsum(self._probs)
-        a = int(np.searchsorted(cdf, rng.random() * cdf[-1], side="right"))
-        return self.arms[min(a, len(self.arms) - 1)]
+        return self._draw(self._probs, rng)
 
     def update(self, k, f_child, f_parent):
-        if self.reward == "improved":
-            x = 1.0 if f_child > f_parent else 0.0
-        else:
-            x = max(0.0, f_child - f_parent) / self.f_max
+        x = self.reward(f_child, f_parent)
         a = self.arms.index(k)
         self.log_w[a] += self.gamma * (x / self._probs[a]) / len(self.arms)
         self.log_w -= self.log_w.max()
@@ -111,3 +122,136 @@ class EXP3(KSelector):
     def load_state_dict(self, state):
         self.log_w = np.array(state["log_w"], dtype=np.float64)
         self._probs = self._compute_probs()
+
+
+class MeanReward(KSelector):
+    """Base of selectors that keep each arm's pull count and reward sum, ``counts`` and ``sums`` (K,)."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, arms=None, reward: str = "improved"):
+        super().__init__(n_agents, f_max)
+        self.arms = self._arms(arms)
+        self.reward_rule = self._reward_rule(reward)
+        self.counts = np.zeros(len(self.arms))
+        self.sums = np.zeros(len(self.arms))
+
+    def update(self, k, f_child, f_parent):
+        a = self.arms.index(k)
+        self.counts[a] += 1
+        self.sums[a] += self.reward(f_child, f_parent)
+
+    def state_dict(self):
+        return {"counts": self.counts.copy(), "sums": self.sums.copy()}
+
+    def load_state_dict(self, state):
+        self.counts = np.array(state["counts"], dtype=np.float64)
+        self.sums = np.array(state["sums"], dtype=np.float64)
+
+
+class UCB1(MeanReward):
+    """UCB1 (Auer, Cesa-Bianchi and Fischer 2002): each arm once, then the arm with the highest
+    ``mean_a + c * sqrt(2 ln t / n_a)`` (ties: the first arm). Deterministic given the rewards."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, c: float = 1.0, arms=None, reward: str = "improved"):
+        super().__init__(n_agents, f_max, arms, reward)
+        self.c = errors.number("c", c, 0)
+
+    def choose(self, rng):
+        untried = np.flatnonzero(self.counts == 0)
+        if untried.size:
+            return self.arms[untried[0]]
+        bonus = self.c * np.sqrt(2.0 * np.log(self.counts.sum()) / self.counts)
+        return self.arms[int(np.argmax(self.sums / self.counts + bonus))]
+
+
+class Thompson(KSelector):
+    """Thompson sampling, Beta-Bernoulli on "improved": arm ``a`` has a ``Beta(alpha_a, beta_a)`` posterior on
+    P(f_child > f_parent); each generation draws one sample per arm and plays the largest."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, alpha: float = 1.0, beta: float = 1.0, arms=None):
+        super().__init__(n_agents, f_max)
+        self.arms = self._arms(arms)
+        self.alpha = np.full(len(self.arms), errors.number("alpha", alpha, 0, lo_open=True))
+        self.beta = np.full(len(self.arms), errors.number("beta", beta, 0, lo_open=True))
+
+    def choose(self, rng):
+        return self.arms[int(np.argmax(rng.beta(self.alpha, self.beta)))]
+
+    def update(self, k, f_child, f_parent):
+        a = self.arms.index(k)
+        improved = f_child > f_parent
+        self.alpha[a] += improved
+        self.beta[a] += not improved
+
+    def state_dict(self):
+        return {"alpha": self.alpha.copy(), "beta": self.beta.copy()}
+
+    def load_state_dict(self, state):
+        self.alpha = np.array(state["alpha"], dtype=np.float64)
+        self.beta = np.array(state["beta"], dtype=np.float64)
+
+
+class EpsilonGreedy(MeanReward):
+    """Epsilon-greedy: with probability ``epsilon`` a uniform arm, else an arm of highest mean reward so far
+    (untried arms count as ``initial``; ties share the greedy probability)."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, epsilon: float = 0.1, initial: float = 1.0, arms=None,
+                 reward: str = "improved"):
+        super().__init__(n_agents, f_max, arms, reward)
+        self.epsilon = errors.number("epsilon", epsilon, 0, 1)
+        self.initial = errors.number("initial", initial)
+
+    @property
+    def probs(self):
+        means = np.where(self.counts > 0, self.sums / np.maximum(self.counts, 1), self.initial)
+        greedy = means == means.max()
+        return self.epsilon / len(self.arms) + (1 - self.epsilon) * greedy / greedy.sum()
+
+    def choose(self, rng):
+        return self._draw(self.probs, rng)
+
+
+class EXP3S(EXP3):
+    """EXP3.S (Auer et al. 2002, section 8), for a best k that changes during the run: after EXP3's update every
+    weight also gets ``e * alpha / K`` of the total, so no arm's probability can stay negligible and the bandit
+    can move to a new best arm within about ``1 / alpha`` generations. ``alpha = 0`` is EXP3."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, gamma: float = 0.1, alpha: float = 0.001, arms=None,
+                 reward: str = "improved"):
+        self.alpha = errors.number("alpha", alpha, 0, 1)
+        super().__init__(n_agents, f_max, gamma, arms, reward)
+
+    def update(self, k, f_child, f_parent):
+        a = self.arms.index(k)
+        w = np.exp(self.log_w - self.log_w.max())
+        w /= w.sum()                                                     # weights as shares: never overflow
+        w[a] *= np.exp(self.gamma * (self.reward(f_child, f_parent) / self._probs[a]) / len(self.arms))
+        w += np.e * self.alpha / len(self.arms)
+        self.log_w = np.log(w / w.max())
+        self._probs = self._compute_probs()
+
+
+class Schedule(KSelector):
+    """A fixed schedule: k steps down from ``start`` (null: N) to ``end`` in equal stages over ``horizon``
+    generations (by default the run's budget), then stays at ``end``. Many rovers explore early, one at a time
+    refines late."""
+
+    def __init__(self, n_agents: int, f_max: float = 1.0, horizon: int = 20000, start=None, end: int = 1):
+        super().__init__(n_agents, f_max)
+        self.horizon = errors.integer("horizon", horizon, 1)
+        start = n_agents if start is None else start
+        self.stages = tuple(range(errors.integer("start", start, 1, n_agents),
+                                  errors.integer("end", end, 1, start) - 1, -1))
+        self.arms = tuple(sorted(self.stages))
+        self.t = 0
+
+    def choose(self, rng):
+        return self.stages[min(self.t * len(self.stages) // self.horizon, len(self.stages) - 1)]
+
+    def update(self, k, f_child, f_parent):
+        self.t += 1
+
+    def state_dict(self):
+        return {"t": self.t}
+
+    def load_state_dict(self, state):
+        self.t = int(state["t"])

@@ -60,9 +60,8 @@ def _scene(rec, rr, world) -> None:
     theta = np.linspace(0, 2 * np.pi, 65)
     ring = world.obs_radius * np.stack([np.cos(theta), np.sin(theta)], axis=1)
     rec.log("world/poi_radius", rr.LineStrips2D([p + ring for p in world.poi_xy], colors=colors), static=True)
-    b = world.start_box
-    rec.log("world/start_boxes", rr.Boxes2D(centers=b / 2 * world.quadrant_signs, sizes=[[b, b]] * world.n_rovers,
-                                            colors=rover_colors(world.n_rovers)), static=True)
+    rec.log("world/start_boxes", rr.LineStrips2D(world.start_squares, colors=rover_colors(world.n_rovers)),
+            static=True)
 
 
 def _series(rec, rr, entity, generations, values) -> None:
