@@ -2,7 +2,8 @@
 
 - ``fig6``: the paper's Fig. 6 for one duo k=1 run: its score; which POIs its rovers observe at the end of one
   episode over the generations (red: one rover, blue: two); the team's trajectories in all 16 episodes just
-  before and after the single-rover updates that first lift the score above 4 and above 5.
+  before and after the single-rover updates that first lift the score past 4 (a duo POI observed in one more
+  episode) and to 5 (see :data:`rovermarl.analysis.results.FIG6_LEVELS`).
 - ``switched``: over runs, the share of episodes in which a rover that was not mutated ends at another POI, for
   accepted updates that raised the score, accepted ones that kept it, and rejected ones.
 """

@@ -199,20 +199,24 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
 
 
 # ---- Fig. 6 --------------------------------------------------------------------------------------------------------
-def _crossings(generation: np.ndarray, score: np.ndarray, levels=(4.0, 5.0)) -> list[int]:
-    """Indices of the behaviour entries where the score first rises above each level (the 'after' entry)."""
+FIG6_LEVELS = (4.0 + 1 / 16, 5.0)  # the first update past the all-solo level 4, and the first to reach 5
+
+
+def _crossings(generation: np.ndarray, score: np.ndarray, levels=FIG6_LEVELS) -> list[int]:
+    """Indices of the behaviour entries where the score first reaches each level (the 'after' entry)."""
     out = []
     for level in levels:
-        hit = np.flatnonzero((score[1:] > level) & (score[:-1] <= level))
+        hit = np.flatnonzero((score[1:] >= level) & (score[:-1] < level))
         if hit.size:
             out.append(int(hit[0]) + 1)
     return out
 
 
-def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=(4.0, 5.0)) -> dict:
+def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS) -> dict:
     """The data of a Fig. 6-style figure for one run of ``job`` (default: the best final score, earliest first):
     its score change points, the occupancy of one episode over generations, and the team's trajectories just
-    before and after the updates that first lift the score above each of ``levels``, with the rover each update changed
+    before and after the updates that first lift the score to each of ``levels`` (by default: past 4, the
+    all-solo level, in one more episode; and to 5, a duo POI in every episode), with the rover each update changed
     (found by re-running the run, which must reproduce the recorded scores)."""
     from rovermarl.evolution import Run, evolve
 
