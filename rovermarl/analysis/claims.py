@@ -12,6 +12,7 @@ between methods.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -66,7 +67,7 @@ class Claims:
         opt, thr = self.levels(setup)
         head = [f"median score @{b:,}" for b in self.budgets] + [f"runs reaching {opt:g}"]
         head += [f"runs reaching {thr:g}"] if thr != opt else []
-        head += [f"median generations to {thr:g}"]
+        head += [f"median generations to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
         base = self.get(setup, against) if against else None
         head += [f"final score vs {against}", f"generations to {thr:g} vs {against}"] if base else []
         self.lines += [f"| {setup}: method | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
@@ -81,7 +82,8 @@ class Claims:
             t = stats.median_ci(times)
             cells = [m.fmt(3) for m in med] + [_count(reach_opt, n)]
             cells += [_count(reach_thr, n)] if thr != opt else []
-            cells.append(t.fmt(3))
+            cells += [t.fmt(None), ", ".join("never" if np.isinf(q) else f"{q:,.0f}"
+                                             for q in stats.quartile_times(times))]
             if base is not None:
                 tests = [stats.mann_whitney(self.values(r, w), self.values(base, w)) for w in ("final", f"time:{thr}")]
                 cells += ["-" if r is base else f"p{stats.format_p(x.p)}, P(a>b)={x.effect:.2f}" for x in tests]
@@ -123,9 +125,16 @@ class Claims:
             self.compare("C3", "solo", "k=1", other, "final")
         k1, k2 = self.get("solo", "k=1"), self.get("solo", "k=2")
         if k1 is not None and k2 is not None:
-            ratio = stats.ratio_ci(k1.curves.first(4), k2.curves.first(4))
+            t1, t2 = k1.curves.first(4), k2.curves.first(4)
+            ratio = stats.ratio_ci(t1, t2)
             self.note("C2", "time_ratio", f"solo, median generations to 4, k=2 / k=1: {ratio.fmt(3)}",
                       ratio.as_dict())
+            q1, q2 = stats.quartile_times(t1), stats.quartile_times(t2)
+            quart = [b / a if np.isfinite(a) and np.isfinite(b) else math.inf if np.isfinite(a) else math.nan
+                     for a, b in zip(q1, q2, strict=True)]
+            self.note("C2", "quartile_ratio", "solo, generations until 1/4, 1/2, 3/4 of the runs reach 4, k=2 / k=1: "
+                      + ", ".join("never" if np.isinf(r) else "n/a" if np.isnan(r) else f"{r:.2f}" for r in quart),
+                      [None if not np.isfinite(r) else r for r in quart])
         self.lines.append("")
 
     def c4_c6(self) -> None:
@@ -133,6 +142,12 @@ class Claims:
         self.table("duo")
         for a, b in (("k=1", "k=2"), ("k=1", "k=4"), ("k=1", "homogeneous"), ("k=2", "homogeneous")):
             self.compare("C4", "duo", a, b, "final")
+        times = {r.label: stats.median_ci(r.curves.first(4)) for r in self.methods("duo")}
+        self.note("C4", "time_to_4", "duo, median generations to 4 (the all-solo level): " +
+                  "; ".join(f"{label} {t.fmt(None)}" for label, t in times.items()),
+                  {label: t.as_dict() for label, t in times.items()})
+        for a, b in (("homogeneous", "k=1"), ("homogeneous", "k=2"), ("k=2", "k=1")):
+            self.compare("C4", "duo", a, b, "time:4")
         for k in ("k=1", "k=2", "k=4"):
             self.compare("C6", "duo", k, f"{k} strict", "final")
             self.compare("C6", "duo", k, f"{k} strict", "time:5")
@@ -208,10 +223,13 @@ class Claims:
                   "agent_steps": sum(r.summary["compute"].get("agent_steps") or 0 for r in jobs),
                   "wall_time_s": sum(r.summary["compute"]["wall_time_s"] for r in jobs),
                   "runs": sum(len(r.curves.seeds) for r in jobs), "jobs": len(self.jobs)}
+        exact = sum(len(r.curves.seeds) * (r.curves.generations + 1) for r in jobs)
+        totals["team_evals_in_results"] = exact
         self.lines.append(f"- {totals['jobs']} jobs, {totals['runs']} runs of {self.budget:,} generations: "
-                          f"{totals['team_evals']:,} team evaluations ({totals['agent_steps']:,} agent-steps), "
-                          f"{totals['wall_time_s'] / 3600:.2f} h of summed job wall time (from each job's "
-                          "`invocations.jsonl`)")
+                          f"{exact:,} team evaluations in the results (initial team + every generation).")
+        self.lines.append(f"- Logged by the launches (each job's `invocations.jsonl`): {totals['team_evals']:,} team "
+                          f"evaluations ({totals['agent_steps']:,} agent-steps), {totals['wall_time_s'] / 3600:.2f} h "
+                          "of summed job wall time.")
         self.data["compute"] = totals
         self.lines.append("")
 

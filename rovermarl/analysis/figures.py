@@ -555,6 +555,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
             for ax in fig.axes:
                 if ax.get_xlabel() == "generation" or ax.get_shared_x_axes().get_siblings(ax) != [ax]:
                     ax.set_xscale("symlog", linthresh=1)
+                    ax.set_xlim(left=0)
         panels = sum(1 for ax in fig.axes if not hasattr(ax, "_colorbar"))
         figures.append({"name": name, "kind": kind, "setup": setup, "files": save(fig, out, name, formats),
                         "axes": len(fig.axes), "panels": panels, **info})
@@ -564,8 +565,10 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
         threshold = threshold_for(setup, thresholds)
         if threshold is None:
             notes.append(f"{setup}: no threshold (pass --threshold {setup}=VALUE); no quartile lines")
-        emit("curves", setup, fig_curves(setup, group, threshold))
-        if pairs := soft_strict_pairs(group):
+        pairs = soft_strict_pairs(group)
+        paired = {id(strict) for _, strict in pairs}                   # drawn in soft_vs_strict instead
+        emit("curves", setup, fig_curves(setup, [j for j in group if id(j) not in paired], threshold))
+        if pairs:
             emit("soft_vs_strict", setup, fig_soft_vs_strict(setup, pairs, threshold))
         if bandits := [j for j in group if j.bandit]:
             emit("bandit", setup, fig_bandit(setup, bandits))

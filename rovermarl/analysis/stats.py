@@ -26,10 +26,13 @@ class Estimate:
     low: float
     high: float
 
-    def fmt(self, digits: int = 3, scale: float = 1.0, unit: str = "") -> str:
-        """``3.88 [3.75, 4]``; ``inf`` prints as ``never``."""
+    def fmt(self, digits: int | None = 3) -> str:
+        """``3.88 [3.75, 4]`` (``digits`` significant digits; None: whole numbers, ``50,900``); ``inf`` prints
+        as ``never``."""
         def one(x: float) -> str:
-            return "never" if math.isinf(x) else f"{x * scale:.{digits}g}{unit}"
+            if math.isinf(x):
+                return "never"
+            return f"{x:,.0f}" if digits is None else f"{x:.{digits}g}"
         return f"{one(self.value)} [{one(self.low)}, {one(self.high)}]"
 
     def as_dict(self) -> dict:
@@ -104,7 +107,8 @@ def format_p(p: float) -> str:
     return "<1e-4" if p < 1e-4 else f"={p:.2g}"
 
 
-def first_times(score: np.ndarray, level: float) -> np.ndarray:
-    """First generation each run reaches ``level``: score (R, G+1) -> (R,) float, ``inf`` for never."""
-    hit = score >= level - 1e-9
-    return np.where(hit.any(axis=1), hit.argmax(axis=1), np.inf).astype(np.float64)
+def quartile_times(times) -> list[float]:
+    """When 1/4, 1/2 and 3/4 of the runs had reached a level: the ceil(q n)-th smallest time, ``inf`` if fewer
+    runs ever got there (the paper's dotted lines)."""
+    t = np.sort(np.asarray(times, dtype=np.float64))
+    return [float(t[max(1, math.ceil(q * len(t) - 1e-9)) - 1]) for q in (0.25, 0.5, 0.75)]
