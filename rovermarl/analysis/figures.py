@@ -4,7 +4,8 @@ A sweep dir holds job dirs, each with ``summary.json``, ``.hydra/`` and ``runs/s
 recorded, ``behaviour.npz`` and ``occupancy.npz``). :func:`plot_sweep` writes into ``figures/``:
 
 - ``curves_<setup>``: top, the median score of every method; bottom, every run's curve, one panel per method, with
-  dotted lines where 1/4, 1/2 and 3/4 of the runs first reach the threshold (Figs. 4, 5, 8);
+  dotted lines where 1/4, 1/2 and 3/4 of the runs first reach the threshold (Figs. 4, 5, 8); strict jobs with a
+  soft counterpart are left to ``soft_vs_strict``;
 - ``soft_vs_strict_<setup>``: medians with soft (solid) and strict (dashed) selection; strict runs below (Fig. 7);
 - ``bandit_<setup>``: the bandit's mean probability of each k over generations, one panel per adaptive job;
 - ``update_<setup>``: one run's trajectories before and after an accepted update that raised the score (Fig. 6);
