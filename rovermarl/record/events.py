@@ -29,8 +29,8 @@ class Recorder:
         shape = ic[0].shape                                            # (E, N, 2)
         self.child_xy = np.empty(shape) if self.occupancy_on else None  # the evaluation writes final positions here
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
-        self.child_poi = np.empty(shape[:2], dtype=np.int8)              # POI each rover observes at the end, -1: none
-        self.parent_poi = np.empty(shape[:2], dtype=np.int8)
+        self.parent_poi = np.empty(shape[:2], dtype=np.int8)             # POI each rover observes at the end, -1: none
+        self._radius = float(world.obs_radius)
         self.count = None
         self.last_behaviour = -1
         self.moved = False                                             # parent changed since the last behaviour entry
@@ -54,9 +54,9 @@ class Recorder:
     def switched(self, mutated: np.ndarray) -> int:
         """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI than under the parents
         (the team evaluated last against the parent team); -1 if every rover was mutated or occupancy is off."""
-        if not self.occupancy_on or mutated.all():
+        if not self.occupancy_on:
             return -1
-        return _switched(self.observed(self.child_xy, self.child_poi), self.parent_poi, mutated)
+        return _switched(self.child_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
 
     def start(self, genomes: np.ndarray, score: float) -> None:
         """Generation 0: the initial team was just evaluated (its final positions are in ``child_xy``)."""
@@ -146,12 +146,24 @@ def _observed(final_xy, poi_xy, radius, out):
 
 
 @njit(cache=True)
-def _switched(child, parent, mutated):
-    """Episodes e with child[e, i] != parent[e, i] for some rover i not ``mutated``: child, parent (E, N)."""
+def _switched(child_xy, poi_xy, radius, parent_poi, mutated):
+    """Episodes e in which a rover i not ``mutated`` ends observing another POI than ``parent_poi[e, i]`` (the
+    same test as :func:`_observed`); -1 if every rover is mutated. child_xy (E, N, 2), parent_poi (E, N)."""
+    if mutated.all():
+        return -1
     n = 0
-    for e in range(child.shape[0]):
-        for i in range(child.shape[1]):
-            if not mutated[i] and child[e, i] != parent[e, i]:
+    for e in range(child_xy.shape[0]):
+        for i in range(child_xy.shape[1]):
+            if mutated[i]:
+                continue
+            poi = -1
+            for j in range(poi_xy.shape[0]):
+                dx = poi_xy[j, 0] - child_xy[e, i, 0]
+                dy = poi_xy[j, 1] - child_xy[e, i, 1]
+                if math.sqrt(dx * dx + dy * dy) <= radius:
+                    poi = j
+                    break
+            if poi != parent_poi[e, i]:
                 n += 1
                 break
     return n
