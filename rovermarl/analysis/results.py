@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from rovermarl.analysis.figures import Job, find_jobs, labels, pick_update
+from rovermarl.analysis.figures import Job, find_jobs, labels
 from rovermarl.record.outputs import atomic_open, write_json
 
 GRID_POINTS = 400
@@ -119,11 +119,10 @@ def coupling(curve, episodes: int) -> dict | None:
 
 def _compute(job: Job) -> dict:
     """Team evaluations and wall time of every launch of the job (``invocations.jsonl``; else summary.json)."""
-    lines = (job.path / "invocations.jsonl").read_text().splitlines() if (job.path / "invocations.jsonl").is_file() \
-        else []
-    launches = [json.loads(x) for x in lines if x.strip()]
-    if not launches:
-        summary = json.loads((job.path / "summary.json").read_text()) if (job.path / "summary.json").is_file() else {}
+    log = job.path / "invocations.jsonl"
+    launches = [json.loads(x) for x in log.read_text().splitlines() if x.strip()] if log.is_file() else []
+    if not launches:                                                     # jobs run before the log existed
+        summary = json.loads((job.path / "summary.json").read_text())
         launches = [{"wall_time_s": summary.get("wall_time_s", 0.0), "team_evals": summary.get("team_evals", 0)}]
     return {"launches": len(launches), "wall_time_s": sum(x["wall_time_s"] for x in launches),
             "team_evals": sum(x["team_evals"] for x in launches)}
@@ -142,7 +141,10 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
               "step_generation": curves.step_generation, "step_score": curves.step_score}
     if job.bandit:
         arrays["probs"] = np.stack([r.probs[np.minimum(grid, len(r.probs) - 1)] for r in runs]).astype(np.float32)
-    episodes = int((job.config.get("env") or {}).get("episodes", 16))
+    world = job.world()
+    if world is None:
+        raise ResultsError(f"{job.path}: cannot build the world from its config")
+    episodes = world.episodes
     couplings = {}
     for r in runs:
         with np.load(r.path / "curve.npz") as z:
@@ -151,8 +153,7 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
             couplings[str(r.seed)] = c
     summary = json.loads((job.path / "summary.json").read_text()) if job.finished else {}
     compute = _compute(job)
-    world = job.world()
-    compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers if world else None
+    compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
                     "episodes": episodes, "source": job.name, "compute": compute})
     if couplings:
@@ -185,7 +186,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
         totals["jobs"][job.name] = summary["compute"]
         totals["team_evals"] += summary["compute"]["team_evals"]
         totals["wall_time_s"] += summary["compute"]["wall_time_s"]
-        totals["agent_steps"] += summary["compute"]["agent_steps"] or 0
+        totals["agent_steps"] += summary["compute"]["agent_steps"]
         log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
     write_json(out / "compute.json", totals)
     if fig6:
@@ -203,13 +204,14 @@ FIG6_LEVELS = (4.0 + 1 / 16, 5.0)  # the first update past the all-solo level 4,
 
 
 def _crossings(generation: np.ndarray, score: np.ndarray, levels=FIG6_LEVELS) -> list[int]:
-    """Indices of the behaviour entries where the score first reaches each level (the 'after' entry)."""
-    out = []
+    """Indices of the behaviour entries where the score first reaches each level (the 'after' entry), in
+    increasing order, each once (one update can cross several levels)."""
+    out = set()
     for level in levels:
         hit = np.flatnonzero((score[1:] >= level) & (score[:-1] < level))
         if hit.size:
-            out.append(int(hit[0]) + 1)
-    return out
+            out.add(int(hit[0]) + 1)
+    return sorted(out)
 
 
 def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS) -> dict:
@@ -237,16 +239,14 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
     with np.load(run.path / "occupancy.npz") as o:
         occ_generation, count = o["generation"], o["count"]
     after = _crossings(generation, score, levels)
-    events = [(i - 1, i) for i in after if i > 0 and pick_update(generation, score, int(generation[i])) == i]
-    cfg = OmegaConf.create(job.config)
-    mutated = []
-    for before, _ in events:
-        g = int(generation[before + 1])             # the 'before' entry is the parent team of generation g - 1
-        replay = Run(cfg, run.seed)
-        evolve(replay, g - 1)
+    events = [(i - 1, i) for i in after]        # the 'before' entry is the parent team of the 'after' generation
+    replay, mutated = Run(OmegaConf.create(job.config), run.seed), []
+    for _, i in events:                                                  # events come in generation order
+        g = int(generation[i])
+        evolve(replay, g - 1 - replay.generation)
         parents = replay.parents_genomes.copy()
         evolve(replay, 1)
-        if replay.f_parent != score[before + 1] or not replay.history.accepted[g - 1]:
+        if replay.f_parent != score[i] or not replay.history.accepted[g - 1]:
             raise ResultsError(f"{run.path}: re-running seed {run.seed} does not reproduce generation {g}")
         mutated.append(np.flatnonzero((replay.parents_genomes != parents).any(axis=1)).astype(np.int64))
     final_count = count[-1]                                              # (E, P): pick an episode that ends best
@@ -256,8 +256,9 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
     changes = [(np.diff(count[:, e], axis=0) != 0).any(axis=1).sum() for e in best_eps]
     episode = int(best_eps[int(np.argmax(changes))])
     idx = [i for pair in events for i in pair]
+    steps = change_points(run.score)
     arrays = {"seed": np.int64(run.seed), "generations": np.int64(len(run.score) - 1),
-              "step_generation": change_points(run.score)[0], "step_score": change_points(run.score)[1],
+              "step_generation": steps[0], "step_score": steps[1],
               "episode": np.int64(episode), "occupancy_generation": occ_generation,
               "occupancy": count[:, episode], "event_generation": generation[idx].reshape(-1, 2),
               "event_score": score[idx].reshape(-1, 2), "event_xy": xy[idx].reshape(len(events), 2, *xy.shape[1:]),

@@ -16,6 +16,7 @@ class KSelector:
     """Base class. ``n_agents`` is N; ``f_max`` the best achievable score (for normalised rewards)."""
 
     arms: tuple[int, ...] = ()
+    reward_rule = "improved"  # see :meth:`reward`
 
     def __init__(self, n_agents: int, f_max: float = 1.0):
         self.n_agents = n_agents
@@ -45,7 +46,7 @@ class KSelector:
     def reward(self, f_child: float, f_parent: float) -> float:
         """The bandit reward of a generation: 1 if the team improved, else 0 (``reward_rule="improved"``), or the
         normalised gain ``max(0, f_child - f_parent) / f_max`` (``"gain"``)."""
-        if getattr(self, "reward_rule", "improved") == "improved":
+        if self.reward_rule == "improved":
             return 1.0 if f_child > f_parent else 0.0
         return max(0.0, f_child - f_parent) / self.f_max
 

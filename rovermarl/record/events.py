@@ -29,7 +29,7 @@ class Recorder:
         shape = ic[0].shape                                            # (E, N, 2)
         self.child_xy = np.empty(shape) if self.occupancy_on else None  # the evaluation writes final positions here
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
-        self.parent_poi = np.empty(shape[:2], dtype=np.int8)             # POI each rover observes at the end, -1: none
+        self.parent_poi = np.empty(shape[:2], dtype=np.int16)            # POI each rover observes at the end, -1: none
         self._radius = float(world.obs_radius)
         self.count = None
         self.last_behaviour = -1
@@ -45,9 +45,9 @@ class Recorder:
         return out
 
     def observed(self, final_xy: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """The POI each rover observes at the end: final_xy (E, N, 2) -> (E, N) int8, lowest index within
+        """The POI each rover observes at the end: final_xy (E, N, 2) -> (E, N) int16, lowest index within
         ``obs_radius``, -1 for none."""
-        out = np.empty(final_xy.shape[:2], dtype=np.int8) if out is None else out
+        out = np.empty(final_xy.shape[:2], dtype=np.int16) if out is None else out
         _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
         return out
 
@@ -132,38 +132,34 @@ def _count(final_xy, poi_xy, radius, out):
 
 
 @njit(cache=True)
+def _poi(x, y, poi_xy, radius):
+    """The lowest j with (x, y) within ``radius`` of POI j (the reward's test), else -1."""
+    for j in range(poi_xy.shape[0]):
+        dx = poi_xy[j, 0] - x
+        dy = poi_xy[j, 1] - y
+        if math.sqrt(dx * dx + dy * dy) <= radius:
+            return j
+    return -1
+
+
+@njit(cache=True)
 def _observed(final_xy, poi_xy, radius, out):
-    """out[e, i] = lowest j with rover i of episode e within ``radius`` of POI j, else -1: out (E, N) int8."""
+    """out[e, i] = the POI rover i of episode e observes at the end, -1 for none: out (E, N)."""
     for e in range(final_xy.shape[0]):
         for i in range(final_xy.shape[1]):
-            out[e, i] = -1
-            for j in range(poi_xy.shape[0]):
-                dx = poi_xy[j, 0] - final_xy[e, i, 0]
-                dy = poi_xy[j, 1] - final_xy[e, i, 1]
-                if math.sqrt(dx * dx + dy * dy) <= radius:
-                    out[e, i] = j
-                    break
+            out[e, i] = _poi(final_xy[e, i, 0], final_xy[e, i, 1], poi_xy, radius)
 
 
 @njit(cache=True)
 def _switched(child_xy, poi_xy, radius, parent_poi, mutated):
-    """Episodes e in which a rover i not ``mutated`` ends observing another POI than ``parent_poi[e, i]`` (the
-    same test as :func:`_observed`); -1 if every rover is mutated. child_xy (E, N, 2), parent_poi (E, N)."""
+    """Episodes e in which a rover i not ``mutated`` ends observing another POI than ``parent_poi[e, i]``;
+    -1 if every rover is mutated. child_xy (E, N, 2), parent_poi (E, N)."""
     if mutated.all():
         return -1
     n = 0
     for e in range(child_xy.shape[0]):
         for i in range(child_xy.shape[1]):
-            if mutated[i]:
-                continue
-            poi = -1
-            for j in range(poi_xy.shape[0]):
-                dx = poi_xy[j, 0] - child_xy[e, i, 0]
-                dy = poi_xy[j, 1] - child_xy[e, i, 1]
-                if math.sqrt(dx * dx + dy * dy) <= radius:
-                    poi = j
-                    break
-            if poi != parent_poi[e, i]:
+            if not mutated[i] and _poi(child_xy[e, i, 0], child_xy[e, i, 1], poi_xy, radius) != parent_poi[e, i]:
                 n += 1
                 break
     return n
