@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 from rovermarl.config import compose_config
-from rovermarl.job import run_job
+from rovermarl.runner.job import run_job
 
 
 def job_seconds(overrides: list[str], out: Path) -> float:

@@ -20,25 +20,27 @@ import os
 import statistics
 import time
 from concurrent.futures import ProcessPoolExecutor
+from functools import partial
 from multiprocessing import get_context
 
 import ray
 from omegaconf import OmegaConf
 
 from rovermarl.config import compose_config
-from rovermarl.evolution import Run, evolve
 from rovermarl.parallel import run_records
 from rovermarl.parallel.ray_backend import release_pool
-from rovermarl.parallel.shards import ShardActor, ShardedEvaluator
+from rovermarl.parallel.shards import ShardActor, ShardedEvaluation
 from rovermarl.record.checkpoint import RunRecord
+from rovermarl.runner.chunk import Run, advance, parts, to_plain
 
 
 def seed_parallel_rate(workers: int, generations: int, seeds: int) -> float:
     """Team evaluations per second of ``seeds`` whole runs on ``workers`` Ray workers."""
     cfg = compose_config(f"parallel.workers={workers}", f"generations={generations}", f"seeds={seeds}")
-    records = [RunRecord(s, generations) for s in range(seeds)]
+    job = to_plain(cfg)
+    records = [RunRecord(s, generations, parts(job).algorithm.series) for s in range(seeds)]
     t = time.perf_counter()
-    run_records(cfg, records, lambda rec, n: None)
+    run_records(cfg, job, records, lambda rec, n: None, advance)
     return seeds * (generations + 1) / (time.perf_counter() - t)
 
 
@@ -46,9 +48,9 @@ def _bare(generations: int) -> float:
     """One bare process: seconds for ``generations`` of one run's loop (after a warm-up)."""
     cfg = OmegaConf.to_container(compose_config(f"generations={generations + 100}"), resolve=True)
     run = Run(cfg, seed=os.getpid())
-    evolve(run, 100)
+    run.advance(100)
     t = time.perf_counter()
-    evolve(run, generations)
+    run.advance(generations)
     return time.perf_counter() - t
 
 
@@ -61,10 +63,10 @@ def bare_rate(procs: int, generations: int) -> float:
 
 
 def per_generation(run: Run, n: int) -> float:
-    """Seconds per generation of ``evolve`` on ``run`` (after a short warm-up)."""
-    evolve(run, 5)
+    """Seconds per generation of ``run.advance`` (after a short warm-up)."""
+    run.advance(5)
     t = time.perf_counter()
-    evolve(run, n)
+    run.advance(n)
     return (time.perf_counter() - t) / n
 
 
@@ -80,8 +82,7 @@ def shard_costs(shards: int, worlds: list[tuple[int, int]], budget_s: float) -> 
         t_local = per_generation(local, n)
         release_pool()                                             # the seed-parallel actors hold the CPUs
         actors = [ShardActor.remote(cfg) for _ in range(shards)]
-        sharded = Run(cfg, seed=0)
-        sharded.evaluate = ShardedEvaluator(actors, sharded)
+        sharded = Run(cfg, seed=0, evaluation=partial(ShardedEvaluation, actors))
         t_shard = per_generation(sharded, max(5, min(2000, int(budget_s / max(t_local, 1e-3)))))
         for a in actors:
             ray.kill(a)

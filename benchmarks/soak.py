@@ -2,7 +2,8 @@
 
 Prints one JSON line: kills survived (worker / driver), relaunches, generations executed vs required, and
 whether the final curves equal an undisturbed serial run (``--verify``). Generations executed are counted
-from ``ROVERMARL_WORK_LOG``, where every finished chunk appends ``seed start stop``.
+from ``ROVERMARL_WORK_LOG``, where every finished chunk appends ``seed start stop`` (``benchmarks/worklog``
+wraps the chunk function; the package writes no such log).
 
     python benchmarks/soak.py [--generations 20000] [--seeds 4] [--period 3] [--verify]
 """
@@ -56,7 +57,8 @@ def main() -> None:
     overrides = ["-m", "k=1,2", "setup=duo", f"generations={a.generations}", f"seeds={a.seeds}",
                  f"parallel.chunk={a.chunk}", f"checkpoint.every={a.chunk}", "hydra.callbacks={}"]
     argv = [sys.executable, "-m", "rovermarl.train", *overrides, f"hydra.sweep.dir={out / 'sweep'}"]
-    env = {**os.environ, "ROVERMARL_WORK_LOG": str(work_log)}
+    path = os.pathsep.join([str(ROOT / "benchmarks" / "worklog"), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "ROVERMARL_WORK_LOG": str(work_log), "PYTHONPATH": path}
     kills = {"worker": 0, "driver": 0}
     launches, t0, turn = 0, time.time(), 0
     while True:
@@ -93,7 +95,7 @@ def main() -> None:
     result["recompute_bound"] = kills["driver"] * 2 * a.seeds * a.chunk
     if a.verify:
         from rovermarl.config import compose_config
-        from rovermarl.job import run_job
+        from rovermarl.runner.job import run_job
         same = True
         for k in (1, 2):
             job = f"generations={a.generations},k={k},seeds={a.seeds},setup=duo"

@@ -1,4 +1,8 @@
-"""Config checks and command-line handling that run before any work (and before Ray starts)."""
+"""Composition of an invocation's jobs and command-line handling, before any work (and before Ray starts).
+
+``compose_config("k=2", "setup=duo")`` gives the job config the CLI would run; checks of a composed config are in
+:mod:`rovermarl.runner.validate`.
+"""
 
 from __future__ import annotations
 
@@ -6,80 +10,14 @@ import contextlib
 import re
 from pathlib import Path
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from rovermarl import errors
-from rovermarl.env.world import CONF_DIR
-from rovermarl.evolution import build
+from rovermarl import errors, hydra_compat
+from rovermarl.resources import CONF_DIR
+from rovermarl.runner.identity import NOT_IN_DIR_NAMES
 
-TOP_LEVEL = {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record",
-             "seeds", "seed", "generations", "levels", "ray", "resume", "checkpoint"}
-NOT_IN_DIR_NAMES = ("parallel", "ray", "record", "checkpoint", "resume", "hydra", "seeds")  # keep results
 _INT = re.compile(r"[+-]?\d+")
 _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
-
-
-def validate(cfg: DictConfig) -> None:
-    """Raise :class:`~rovermarl.errors.ConfigError` naming the first bad key of a composed job config."""
-    for key in cfg:
-        if key not in TOP_LEVEL and key != "hydra":
-            raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
-                                     ", ".join(sorted(TOP_LEVEL)))
-    _keys("setup", cfg.get("setup"), {"name", "coupling", "value"}, {"name", "coupling", "value"})  # World: missing
-    _keys("env", cfg.get("env"), None)  # World names unknown env keys
-    _keys("policy", cfg.get("policy"), {"hidden", "init_low", "init_high"})
-    _keys("ray", cfg.get("ray"), {"address", "num_cpus"}, {"address", "num_cpus"})
-    errors.integer("seeds", cfg.get("seeds"), 1)
-    errors.integer("seed", cfg.get("seed"), 0)
-    errors.integer("generations", cfg.get("generations"), 1)
-    levels = cfg.get("levels")
-    if not OmegaConf.is_list(levels):
-        raise errors.ConfigError("levels", levels, "must be a list of score levels")
-    for i, lv in enumerate(levels):
-        errors.number(f"levels[{i}]", lv)
-    _flag("resume", cfg.get("resume"))
-    _keys("checkpoint", cfg.get("checkpoint"), {"every"})
-    errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
-    rec = cfg.get("record")
-    _keys("record", rec, {"rerun", "behaviour", "occupancy", "every", "steps"})
-    for key in ("rerun", "behaviour", "occupancy", "steps"):
-        _flag(f"record.{key}", rec.get(key))
-    errors.integer("record.every", rec.get("every"), 1)
-    par = cfg.get("parallel")
-    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards"}, {"workers", "retries", "ic_shards"})
-    errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
-    errors.integer("parallel.chunk", par.get("chunk"), 1)
-    errors.integer("parallel.retries", par.get("retries", 0), 0)
-    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1)
-    if par.get("workers") is not None:
-        errors.integer("parallel.workers", par.workers, 1)
-    address = cfg.ray.get("address")
-    if address is not None and (not isinstance(address, str) or not address):
-        raise errors.ConfigError("ray.address", address, "must be null, 'auto' or 'HOST:PORT'")
-    if cfg.ray.get("num_cpus") is not None:
-        errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
-    build(cfg)
-
-
-def _flag(key: str, value) -> None:
-    if not isinstance(value, bool):
-        raise errors.ConfigError(key, value, "must be true or false")
-
-
-def _keys(section: str, node, allowed: set[str] | None, optional: set[str] = frozenset()) -> None:
-    """``node`` must be a mapping; with ``allowed``, of those keys only (all but ``optional`` required)."""
-    if not isinstance(node, DictConfig):
-        keys = " with keys " + ", ".join(sorted(allowed)) if allowed else ""
-        raise errors.ConfigError(section, node, f"must be a mapping{keys}")
-    if allowed is None:
-        return
-    for key in node:
-        if key not in allowed and key != "_target_":
-            raise errors.ConfigError(f"{section}.{key}", node.get(key), "unknown key; allowed: " +
-                                     ", ".join(sorted(allowed)))
-    for key in allowed - optional:
-        if key not in node:
-            raise errors.ConfigError(f"{section}.{key}", None, "missing")
 
 
 def group_names(conf_dir: Path = CONF_DIR) -> set[str]:
@@ -105,27 +43,33 @@ def quote_numeric_options(argv: list[str], groups: set[str] | None = None) -> li
     return out
 
 
-def dirname(override_dirname: str) -> str:
-    """Readable sweep subdir from Hydra's override_dirname: ``k='1',setup=solo`` -> ``k=1,setup=solo``."""
-    return override_dirname.replace("'", "").replace('"', "").replace("/", "_") or "default"
+def _readable(text: str) -> str:
+    return text.replace("'", "").replace('"', "").replace("/", "_")
+
+
+def _naming(overrides) -> list[str]:
+    """The overrides that name an output dir: those of settings that can change results, sorted."""
+    keep = [str(o) for o in overrides
+            if str(o).lstrip("+~").partition("=")[0].split(".")[0].split("@")[0] not in NOT_IN_DIR_NAMES]
+    return sorted(keep)
+
+
+def dirname(task_overrides) -> str:
+    """A job's dir name from its overrides (Hydra's ``hydra.overrides.task``):
+    ``["setup=solo", "k='1'", "parallel=serial"]`` -> ``k=1,setup=solo``."""
+    return _readable(",".join(_naming(task_overrides))) or "default"
 
 
 def sweepname(task_overrides) -> str:
     """Sweep dir name from the command's overrides, minus settings that do not change results:
     ``["k='1','2',adaptive", "setup=solo,duo", "parallel=serial"]`` -> ``k=1,2,adaptive__setup=solo,duo``."""
-    keep = []
-    for item in task_overrides:
-        key = str(item).lstrip("+~").partition("=")[0]
-        if key.split(".")[0].split("@")[0] not in NOT_IN_DIR_NAMES:
-            keep.append(dirname(str(item)))
-    return "__".join(sorted(keep)) or "default"
+    return "__".join(_readable(o) for o in _naming(task_overrides)) or "default"
 
 
 def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
                  config_dir: str | None = None) -> list[DictConfig]:
     """Compose the config of every job an invocation would launch (sweeps expanded as Hydra's basic
     sweeper does). Composition problems raise :class:`~rovermarl.errors.ConfigError`."""
-    from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.errors import HydraException
 
@@ -134,7 +78,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
     except HydraException as e:
         raise errors.ConfigError("override", " ".join(argv), _one_line(e)) from None
     if multirun:
-        jobs = [job for batch in BasicSweeper.split_arguments(parsed, None) for job in batch]
+        jobs = hydra_compat.split_sweep(parsed)
     else:
         sweeps = [o for o in parsed if o.is_sweep_override()]
         if sweeps:

@@ -1,7 +1,8 @@
 """Train: ``python -m rovermarl.train [-m] [group=option ...] [key=value ...]``.
 
-Every job of an invocation is composed and validated before anything runs (and before Ray starts);
-a bad config exits with status 2 and one line on stderr.
+Every job of an invocation is composed and validated before anything runs (and before Ray starts); a bad config
+exits with status 2 and one line on stderr. Output dirs are named after the command's overrides
+(``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it.
 """
 
 from __future__ import annotations
@@ -12,34 +13,40 @@ import sys
 import tempfile
 from pathlib import Path
 
-import hydra
 from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, OmegaConf
 
-from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname, validate
-from rovermarl.env.world import CONF_DIR
+from rovermarl import hydra_compat
+from rovermarl.algorithms.base import AlgorithmError
+from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname
 from rovermarl.errors import ConfigError
-from rovermarl.job import GROUPS, run_job
+from rovermarl.resources import CONF_DIR
+from rovermarl.runner.job import run_job
+from rovermarl.runner.validate import validate
 
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
+PROG = "rovermarl.train"
 
 
-@hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
-def hydra_main(cfg: DictConfig) -> float:
+def task(cfg: DictConfig) -> float:
+    """One Hydra job: its runs, into Hydra's output dir."""
     hc = HydraConfig.get()
-    choices = {g: hc.runtime.choices[g] for g in GROUPS if g in hc.runtime.choices}
-    name = dirname(hc.job.override_dirname) if hc.job.override_dirname else "run"
-    return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
+    choices = {g: c for g, c in hc.runtime.choices.items() if not g.startswith("hydra/")}
+    name = dirname(hc.overrides.task) if hc.overrides.task else "run"
+    try:
+        return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
+    except AlgorithmError as e:
+        print(f"{PROG}: error: {name}: {e}", file=sys.stderr)
+        sys.exit(1)
 
 
-def check(argv: list[str]) -> tuple[list[DictConfig], list[str]]:
-    """Compose and validate every job of ``argv`` (already quoted); raises ConfigError.
+def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser, list[DictConfig]]:
+    """Parse, compose and validate every job of ``argv`` (already quoted); raises ConfigError.
 
-    Returns the job configs and ``argv`` with the output dir made explicit: ``outputs/multirun/<overrides>``
-    (``outputs/run/<overrides>`` without -m), so relaunching the same command finds and resumes its results.
+    Returns Hydra's parsed arguments with the output dir made explicit (``outputs/multirun/<overrides>``, or
+    ``outputs/run/<overrides>`` without -m), the parser, and the job configs.
     """
-    from hydra._internal.utils import get_args_parser
-    parser = get_args_parser()
+    parser = hydra_compat.args_parser()
     parser.exit_on_error = False
     try:
         args, unknown = parser.parse_known_args(argv)
@@ -48,7 +55,7 @@ def check(argv: list[str]) -> tuple[list[DictConfig], list[str]]:
     if unknown:
         raise ConfigError("option", unknown[0], "unrecognized; see --help (overrides are KEY=VALUE)")
     if args.help or args.hydra_help or args.cfg or args.info or args.shell_completion:
-        return [], argv  # Hydra's own informational modes
+        return args, parser, []  # Hydra's own informational modes
     cfgs = compose_jobs(args.overrides, args.multirun, args.config_name or "config", args.config_dir)
     for cfg in cfgs:
         validate(cfg)
@@ -56,7 +63,9 @@ def check(argv: list[str]) -> tuple[list[DictConfig], list[str]]:
     given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key + "=")]
     out = given[-1] if given else f"outputs/{'multirun' if args.multirun else 'run'}/{sweepname(args.overrides)}"
     writable(key, Path(out))
-    return cfgs, argv if given else [*argv, f"{key}='{out}'"]
+    if not given:
+        args.overrides = [*args.overrides, f"{key}='{out}'"]
+    return args, parser, cfgs
 
 
 def writable(key: str, path: Path) -> None:
@@ -98,13 +107,12 @@ def connect(cfgs: list[DictConfig]) -> None:
 def main(argv: list[str] | None = None) -> None:
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
-        cfgs, argv = check(argv)
+        args, parser, cfgs = check(argv)
         connect(cfgs)
     except ConfigError as e:
-        print(f"rovermarl.train: error: {e}", file=sys.stderr)
+        print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
-    sys.argv = [sys.argv[0], *argv]
-    hydra_main()
+    hydra_compat.run(args, parser, task, str(CONF_DIR))
 
 
 if __name__ == "__main__":

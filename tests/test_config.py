@@ -6,16 +6,18 @@ import numpy as np
 import pytest
 
 from rovermarl import train
-from rovermarl.config import group_names, quote_numeric_options, validate
+from rovermarl.config import group_names, quote_numeric_options
 from rovermarl.env.world import CONF_DIR
-from rovermarl.evolution import build
+from rovermarl.runner import build
+from rovermarl.runner.validate import validate
 from tests.conftest import make_cfg, run_cli
 
 OPTIONS = sorted((g, p.stem) for g in group_names() for p in (CONF_DIR / g).glob("*.yaml"))
 
 
 def test_groups_are_the_documented_ones():
-    assert group_names() == {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record"}
+    assert group_names() == {"setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record",
+                             "algorithm"}
     assert {o for g, o in OPTIONS if g == "k"} == {"1", "2", "3", "4", "adaptive", "ucb1", "thompson", "egreedy",
                                                    "exp3s", "schedule"}
     assert {o for g, o in OPTIONS if g == "setup"} == {"solo", "duo", "trio", "trio6", "solo20"}
@@ -30,16 +32,18 @@ def test_every_option_composes_and_instantiates(group, option):
     assert w.n_params == (3 * w.n_pois + 2 * w.n_rovers) * 16 + 16 + 16 * 2 + 2
     assert w.n_params == 658 or group == "setup"
     if group == "k":
-        assert parts.selector.choose(np.random.default_rng(0)) in parts.selector.arms
+        selector = parts.algorithm.selector
+        assert selector.choose(np.random.default_rng(0)) in selector.arms
 
 
 def test_defaults():
     cfg = make_cfg()
     assert (cfg.seeds, cfg.seed, cfg.generations) == (16, 0, 20000)
     parts = build(cfg)
-    assert type(parts.selector).__name__ == "FixedK" and parts.selector.value == 1
-    assert parts.mutation.sigma == 0.1 and parts.mutation.p_gaussian == 0.2
-    assert not parts.selection.strict and type(parts.team).__name__ == "HeterogeneousTeam"
+    algo = parts.algorithm
+    assert type(algo).__name__ == "CC11ES" and type(algo.selector).__name__ == "FixedK" and algo.selector.value == 1
+    assert algo.mutate.sigma == 0.1 and algo.mutate.p_gaussian == 0.2
+    assert not algo.accept.strict and type(algo.composition).__name__ == "HeterogeneousTeam"
 
 
 def test_quote_numeric_options():

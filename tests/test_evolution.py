@@ -5,12 +5,13 @@ import math
 import numpy as np
 import pytest
 
+from rovermarl.algorithms import AlgorithmError
+from rovermarl.algorithms.operators.mutation import MixedMutation
+from rovermarl.algorithms.operators.selection import Selection
+from rovermarl.algorithms.operators.selectors import EXP3, FixedK
+from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam
 from rovermarl.errors import ConfigError
-from rovermarl.evolution import Run, evolve
-from rovermarl.evolution.mutation import MixedMutation
-from rovermarl.evolution.selection import Selection
-from rovermarl.evolution.selectors import EXP3, FixedK
-from rovermarl.evolution.team import HeterogeneousTeam, HomogeneousTeam
+from rovermarl.runner import Run
 from tests.conftest import make_cfg
 
 
@@ -57,14 +58,14 @@ def test_soft_and_strict_on_ties():
 @pytest.mark.parametrize("selection", ["soft", "strict"])
 def test_loop_applies_the_selection_rule(selection):
     run = Run(make_cfg(f"selection={selection}", "k=2", "generations=400"), seed=3)
-    evolve(run, 400)
-    h = run.history
-    prev = h.score[:-1]
-    expected = h.child_score >= prev if selection == "soft" else h.child_score > prev
-    np.testing.assert_array_equal(h.accepted, expected)
-    assert np.any(h.child_score == prev)                         # ties happen and were decided
-    np.testing.assert_array_equal(h.score[1:], np.where(h.accepted, h.child_score, prev))
-    assert np.all(np.diff(h.score) >= 0)
+    h = run.advance(400)
+    score = np.concatenate([[run.initial_score], h["score"]])
+    prev = score[:-1]
+    expected = h["child_score"] >= prev if selection == "soft" else h["child_score"] > prev
+    np.testing.assert_array_equal(h["accepted"], expected)
+    assert np.any(h["child_score"] == prev)                      # ties happen and were decided
+    np.testing.assert_array_equal(score[1:], np.where(h["accepted"], h["child_score"], prev))
+    assert np.all(np.diff(score) >= 0)
 
 
 def test_exp3_probabilities_and_update_by_hand():
@@ -130,23 +131,39 @@ def test_teams_pick_and_clone():
 def test_heterogeneous_loop_mutates_exactly_k_rovers():
     run = Run(make_cfg("k=2", "generations=50"), seed=0)
     for _ in range(50):
-        before = run.parents.copy()
-        evolve(run, 1)
-        changed = np.any(run.parents != before, axis=1).sum()
-        assert changed == (2 if run.history.accepted[run.generation - 1] else 0)
+        before = run.team.copy()
+        h = run.advance(1)
+        changed = np.any(run.team != before, axis=1).sum()
+        assert changed == (2 if h["accepted"][0] else 0)
 
 
 def test_same_seed_same_curve_and_seeds_differ():
-    a, b, c = (Run(make_cfg("k=adaptive", "setup=duo", "generations=300"), seed=s) for s in (5, 5, 6))
-    for r in (a, b, c):
-        evolve(r, 120)
-        evolve(r, 1000)                                          # stops at generations
-    assert a.done and a.generation == 300
-    for key, arr in a.history.arrays().items():
-        np.testing.assert_array_equal(arr, b.history.arrays()[key])
-    assert not np.array_equal(a.history.child_score, c.history.child_score)
-    assert a.history.probs.shape == (300, 4) and np.allclose(a.history.probs.sum(1), 1)
-    assert set(np.unique(a.history.k)) <= {1, 2, 3, 4}
+    runs = [Run(make_cfg("k=adaptive", "setup=duo", "generations=300"), seed=s) for s in (5, 5, 6)]
+    hist = []
+    for r in runs:
+        first, rest = r.advance(120), r.advance(1000)            # stops at generations
+        hist.append({key: np.concatenate([first[key], rest[key]]) for key in first})
+    a, b, c = hist
+    assert runs[0].done and runs[0].generation == 300
+    for key, arr in a.items():
+        np.testing.assert_array_equal(arr, b[key])
+    assert not np.array_equal(a["child_score"], c["child_score"])
+    assert a["probs"].shape == (300, 4) and np.allclose(a["probs"].sum(1), 1)
+    assert set(np.unique(a["k"])) <= {1, 2, 3, 4}
+
+
+class SevenK(FixedK):
+    """A broken selector: it declares arm 1 but chooses 7."""
+
+    def choose(self, rng):
+        return 7
+
+
+def test_a_selector_choosing_outside_its_arms_stops_the_run():
+    cfg = make_cfg("k=1", "generations=5")
+    cfg.k._target_ = f"{__name__}.SevenK"
+    with pytest.raises(AlgorithmError, match=r"^k-selector SevenK chose k=7; allowed: 1 "):
+        Run(cfg, seed=0).advance(5)
 
 
 def test_it_learns():
@@ -154,8 +171,8 @@ def test_it_learns():
     finals, starts = [], []
     for seed in range(3):
         run = Run(make_cfg("generations=2000"), seed=seed)
-        evolve(run, 2000)
-        starts.append(run.history.score[0])
-        finals.append(run.history.score[-1])
+        run.advance(2000)
+        starts.append(run.initial_score)
+        finals.append(run.score)
     assert np.median(finals) >= 2.0
     assert min(f - s for f, s in zip(finals, starts, strict=True)) >= 1.0

@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 from rerun.chunk import RrdReader
 
-from rovermarl.evolution import Run, evolve
-from rovermarl.job import config_hash, run_job
-from rovermarl.parallel import advance, plain
 from rovermarl.record import checkpoint
 from rovermarl.record.checkpoint import CheckpointError, RunRecord
+from rovermarl.record.events import occupancy
+from rovermarl.runner.chunk import advance, parts, to_plain
+from rovermarl.runner.identity import config_hash
+from rovermarl.runner.job import run_job
 from tests.conftest import make_cfg, run_cli
 
 
@@ -25,28 +26,27 @@ def _entities(path):
 
 
 def test_events_match_the_history():
-    run = Run(make_cfg("setup=duo", "k=2", "generations=400"), seed=5)
-    evolve(run, 400)
-    res = run.result()
-    h, world = run.history, run.parts.world
+    cfg = make_cfg("setup=duo", "k=2", "generations=400")
+    res = _chunks(cfg, 5, [400]).result()
+    world = parts(to_plain(cfg)).world
     expected, moved = [0], False                              # every score change, with its exact "before"
     for g in range(1, 401):
-        if h.accepted[g - 1] and h.score[g] != h.score[g - 1]:
+        if res["accepted"][g - 1] and res["score"][g] != res["score"][g - 1]:
             expected += [g - 1, g] if moved else [g]
             moved = False
-        elif h.accepted[g - 1]:
+        elif res["accepted"][g - 1]:
             moved = True
     expected += [] if expected[-1] == 400 else [400]
     assert len(expected) > 3
     np.testing.assert_array_equal(res["behaviour_generation"], expected)
-    np.testing.assert_array_equal(res["behaviour_score"], h.score[res["behaviour_generation"]])
-    last = world.rollout(run.parents_genomes, run.ic)
+    np.testing.assert_array_equal(res["behaviour_score"], res["score"][res["behaviour_generation"]])
+    last = world.rollout(res["genomes"], (res["ic_xy"], res["ic_heading"]))
     np.testing.assert_array_equal(res["behaviour_xy"][-1], last.xy.astype(np.float32))
     # occupancy: the latest entry is the final team's, and replaying it gives the score
     count = res["occupancy_count"][-1]
-    np.testing.assert_array_equal(count, run.recorder.occupancy(last.xy[:, -1]))
+    np.testing.assert_array_equal(count, occupancy(world, last.xy[:, -1]))
     coupling, value = np.array(world.coupling), np.array(world.value)
-    assert np.mean(((count >= coupling) * value).sum(axis=1)) == h.score[-1]
+    assert np.mean(((count >= coupling) * value).sum(axis=1)) == res["score"][-1]
     assert res["occupancy_generation"][0] == 0 and np.all(np.diff(res["occupancy_generation"]) > 0)
     assert len(res["occupancy_generation"]) > 1
 
@@ -123,7 +123,8 @@ def test_replay_bad_input_is_one_line(tmp_path, args):
 
 def _chunks(cfg, seed, sizes):
     """A RunRecord advanced by chunks of the given sizes."""
-    job, rec = plain(cfg), RunRecord(seed, cfg.generations)
+    job = to_plain(cfg)
+    rec = RunRecord(seed, cfg.generations, parts(job).algorithm.series)
     for n in sizes:
         rec.add(advance(job, seed, rec.state, n))
     return rec
@@ -142,7 +143,7 @@ def test_chunked_and_checkpointed_runs_are_bit_identical(tmp_path):
     rec.save(tmp_path / "checkpoint.bin", "h")
     rec = RunRecord.load(tmp_path / "checkpoint.bin", "h")
     for n in (100, 100):
-        rec.add(advance(plain(cfg), 4, rec.state, n))
+        rec.add(advance(to_plain(cfg), 4, rec.state, n))
     assert rec.done
     _same(whole.result(), rec.result())
 
@@ -163,7 +164,7 @@ def test_corrupt_checkpoint_is_named_and_the_previous_one_is_used(tmp_path):
     with pytest.raises(CheckpointError, match="different config"):
         RunRecord.load(checkpoint.previous(path), "other")
     path.write_bytes(b"garbage")
-    checkpoint.previous(path).write_bytes(b"RMCKPT1 00\n")
+    checkpoint.previous(path).write_bytes(checkpoint.MAGIC + b" 00\n")
     warnings.clear()
     assert checkpoint.resume(path, "h", warnings.append) is None and len(warnings) == 2
 
@@ -173,7 +174,7 @@ def test_job_resumes_from_checkpoints_and_skips_finished_runs(tmp_path, caplog):
             "checkpoint.every=25"]
     ref = run_job(make_cfg(*over), tmp_path / "ref")
     cfg = make_cfg(*over)
-    key = config_hash(cfg)
+    key = config_hash(to_plain(cfg))
     job = tmp_path / "job"
     run_job(make_cfg(*over[:-3], "seeds=1", "parallel=serial"), job)          # seed 0 finished
     half = _chunks(cfg, 1, [25, 25])                                         # seed 1 at generation 50
@@ -202,7 +203,7 @@ def test_job_with_only_corrupt_checkpoints_says_so_and_starts_from_scratch(tmp_p
     ref = run_job(cfg, tmp_path / "ref")
     ckpt = tmp_path / "job" / "runs" / "seed_000" / "checkpoint.bin"
     ckpt.parent.mkdir(parents=True)
-    ckpt.write_bytes(b"RMCKPT1 deadbeef\npayload")
+    ckpt.write_bytes(checkpoint.MAGIC + b" deadbeef\npayload")
     with caplog.at_level("INFO", logger="rovermarl"):
         out = run_job(cfg, tmp_path / "job")
     assert f"{ckpt}: checksum mismatch" in caplog.text and "starts from scratch" in caplog.text

@@ -10,7 +10,7 @@ import time
 import numpy as np
 import psutil
 
-from rovermarl.job import run_job
+from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg
 
 

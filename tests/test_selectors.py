@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
+from rovermarl.algorithms.operators.selectors import EXP3, EXP3S, UCB1, EpsilonGreedy, Schedule, Thompson
 from rovermarl.config import compose_config
 from rovermarl.errors import ConfigError
-from rovermarl.evolution import build
-from rovermarl.evolution.selectors import EXP3, EXP3S, UCB1, EpsilonGreedy, Schedule, Thompson
+from rovermarl.runner import build
 
 P_IMPROVE = np.array([0.05, 0.30, 0.10, 0.02])  # arm k=2 improves the team most often
 
@@ -76,14 +76,14 @@ def test_schedule_steps_down_from_n_to_one_in_equal_stages():
 
 
 def test_schedule_horizon_defaults_to_the_budget():
-    parts = build(compose_config("k=schedule", "generations=1234"))
-    assert parts.selector.horizon == 1234 and parts.selector.stages == (4, 3, 2, 1)
+    selector = build(compose_config("k=schedule", "generations=1234")).algorithm.selector
+    assert selector.horizon == 1234 and selector.stages == (4, 3, 2, 1)
 
 
 @pytest.mark.parametrize("option", ["adaptive", "ucb1", "thompson", "egreedy", "exp3s", "schedule"])
 def test_selectors_resume_mid_stream(option):
     """state_dict / load_state_dict: a selector restored mid-stream continues exactly like the original."""
-    make = lambda: build(compose_config(f"k={option}", "generations=600")).selector  # noqa: E731
+    make = lambda: build(compose_config(f"k={option}", "generations=600")).algorithm.selector  # noqa: E731
     a, b = make(), make()
     play(a, 300, seed=3)
     b.load_state_dict(a.state_dict())

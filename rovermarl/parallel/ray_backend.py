@@ -10,20 +10,22 @@ import socket
 
 import ray
 
-from rovermarl.parallel import advance, plain
-
 
 @ray.remote(num_cpus=1)
 class ChunkWorker:
-    """Runs chunks: :func:`rovermarl.parallel.advance`, a pure function of its arguments. The actor keeps no
-    run state, so when its process dies Ray restarts it and reruns the pending call (``parallel.retries``)
-    with the same inputs and the same result. Actor calls skip the scheduler round trip that tasks pay."""
+    """Runs chunks with the chunk function it was started with, a pure function of its arguments. The actor keeps
+    no run state, so when its process dies Ray restarts it and reruns the pending call (``parallel.retries``) with
+    the same inputs and the same result. Actor calls skip the scheduler round trip that tasks pay."""
+
+    def __init__(self, advance):
+        self._advance = advance
 
     def advance(self, cfg: dict, seed: int, state: dict | None, n: int) -> dict:
-        return advance(cfg, seed, state, n)
+        return self._advance(cfg, seed, state, n)
 
 
 _POOL: list = []
+_POOL_FN: list = []                                                  # the chunk function the pool's actors run
 
 
 def release_pool() -> None:
@@ -31,12 +33,16 @@ def release_pool() -> None:
     for actor in _POOL:
         ray.kill(actor)
     _POOL.clear()
+    _POOL_FN.clear()
 
 
-def _workers(n: int, retries: int) -> list:
-    """``n`` actors of the pool, started on first use."""
+def _workers(n: int, retries: int, advance) -> list:
+    """``n`` actors of the pool running ``advance``, started on first use."""
+    if _POOL_FN and _POOL_FN[0] is not advance:
+        release_pool()
+    _POOL_FN[:] = [advance]
     while len(_POOL) < n:
-        _POOL.append(ChunkWorker.options(max_restarts=retries, max_task_retries=retries).remote())
+        _POOL.append(ChunkWorker.options(max_restarts=retries, max_task_retries=retries).remote(advance))
     return _POOL[:n]
 
 
@@ -63,13 +69,13 @@ def _probe(address: str, timeout: float = 5.0) -> None:
         raise ConnectionError(f"nothing answers at {host}:{port} ({e.strerror or e})") from None
 
 
-def run_ray(cfg, records, on_chunk) -> None:
+def run_ray(cfg, job: dict, records, on_chunk, advance) -> None:
     """Advance the records on the actor pool: one chunk per run in flight, at most one per actor."""
     ensure_ray(cfg.ray)
     slots = cfg.parallel.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
     queue = [rec for rec in records if not rec.done]
-    free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5))
-    job_cfg = ray.put(plain(cfg))
+    free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5), advance)
+    job_cfg = ray.put(job)
     inflight = {}
 
     def submit(rec, worker):

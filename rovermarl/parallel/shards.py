@@ -13,7 +13,6 @@ from omegaconf import OmegaConf
 
 from rovermarl.env import World
 from rovermarl.env.world import score
-from rovermarl.parallel import advance, plain
 from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
 
@@ -34,37 +33,40 @@ class ShardActor:
         return self.world.returns(genomes, self.ic, final), final
 
 
-class ShardedEvaluator:
-    """``run.evaluate`` replacement: same signature and results as :meth:`Run.local_evaluate`."""
+class ShardedEvaluation:
+    """An evaluation over shard actors, with the same results as local evaluation
+    (:class:`rovermarl.runner.chunk.Evaluation`): ``evaluate(genomes (N, P)) -> F``; with ``keep_final``,
+    ``final_xy`` (E, N, 2) holds the final positions of the team evaluated last."""
 
-    def __init__(self, actors: list, run):
-        self.actors, self.run = actors, run
-        bounds = np.linspace(0, run.ic[1].shape[0], len(actors) + 1).round().astype(int)
+    def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True):
+        self.actors = actors
+        self.final_xy = np.empty(ic[0].shape) if keep_final else None
+        bounds = np.linspace(0, ic[1].shape[0], len(actors) + 1).round().astype(int)
         self.slices = list(zip(bounds[:-1], bounds[1:], strict=True))
-        ray.get([a.set_ic.remote(run.ic[0][lo:hi], run.ic[1][lo:hi]) for a, (lo, hi) in zip(actors, self.slices,
-                                                                                           strict=True)])
+        ray.get([a.set_ic.remote(ic[0][lo:hi], ic[1][lo:hi]) for a, (lo, hi) in zip(actors, self.slices,
+                                                                                     strict=True)])
 
     def __call__(self, genomes: np.ndarray) -> float:
         genomes = np.ascontiguousarray(genomes)                         # small: sent inline with each call
         parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
-        if self.run.recorder.child_xy is not None:
-            self.run.recorder.child_xy[...] = np.concatenate([f for _, f in parts])
+        if self.final_xy is not None:
+            self.final_xy[...] = np.concatenate([f for _, f in parts])
         return score(returns)
 
 
-def run_sharded(cfg, records, on_chunk) -> None:
+def run_sharded(cfg, job: dict, records, on_chunk, advance) -> None:
     """Advance the records one after another, each evaluation split over ``parallel.ic_shards`` actors."""
     ensure_ray(cfg.ray)
     release_pool()                                                      # its actors hold the CPUs shards need
-    job = plain(cfg)
     actors = [ShardActor.remote(job) for _ in range(cfg.parallel.ic_shards)]
+
+    def evaluation(world, ic, keep_final):
+        return ShardedEvaluation(actors, world, ic, keep_final)
     try:
         for rec in records:
             while not rec.done:
-                chunk = advance(job, rec.seed, rec.state, cfg.parallel.chunk,
-                                evaluator=lambda run: ShardedEvaluator(actors, run))
-                on_chunk(rec, rec.add(chunk))
+                on_chunk(rec, rec.add(advance(job, rec.seed, rec.state, cfg.parallel.chunk, evaluation)))
     finally:
         for a in actors:
             ray.kill(a)

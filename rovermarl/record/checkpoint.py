@@ -3,7 +3,7 @@
 A run advances in chunks (on Ray or in this process). Each chunk returns its slice of the history, its
 events and the run's compact state; :class:`RunRecord` stitches them together. Every ``checkpoint.every``
 generations the record is written to ``runs/seed_XXX/checkpoint.bin`` (the previous one is kept as
-``checkpoint.prev.bin``). A checkpoint file is one header line ``RMCKPT1 <sha256 of payload>`` followed
+``checkpoint.prev.bin``). A checkpoint file is one header line ``RMCKPT2 <sha256 of payload>`` followed
 by an ``.npz`` payload; a truncated or corrupt file fails the checksum and is reported by name.
 """
 
@@ -20,9 +20,7 @@ import numpy as np
 
 from rovermarl.record.outputs import atomic_open
 
-MAGIC = b"RMCKPT1"
-EVENT_KEYS = ("behaviour_generation", "behaviour_score", "behaviour_xy", "occupancy_generation", "occupancy_count")
-HISTORY_KEYS = ("k", "accepted", "switched", "child_score", "probs")
+MAGIC = b"RMCKPT2"
 
 
 class CheckpointError(Exception):
@@ -30,38 +28,35 @@ class CheckpointError(Exception):
 
 
 class RunRecord:
-    """Everything the driver knows of one run: history (full length), events so far, and the state to resume."""
+    """Everything the driver knows of one run: its score and the algorithm's declared ``series`` (full length), the
+    observer's events so far (per result file), the run's extras and the state to resume from."""
 
-    def __init__(self, seed: int, generations: int):
+    def __init__(self, seed: int, generations: int, series=()):
         self.seed, self.generations = int(seed), int(generations)
         self.generation = 0
         self.state: dict | None = None
         self.score = np.full(generations + 1, np.nan)
-        self.history: dict[str, np.ndarray] = {}
-        self.events: dict[str, list[np.ndarray]] = {key: [] for key in EVENT_KEYS}
-        self.extra: dict[str, np.ndarray] = {}                     # ic_xy, ic_heading, genomes
+        self.history: dict[str, np.ndarray] = {s.name: s.empty(generations) for s in series}
+        self.events: dict[str, list[np.ndarray]] = {}                 # "<file>_<key>" -> parts
+        self.extra: dict[str, np.ndarray] = {}                        # ic_xy, ic_heading, genomes
 
     @property
     def done(self) -> bool:
         return self.generation >= self.generations
 
     def add(self, chunk: dict) -> int:
-        """Apply one chunk returned by :func:`rovermarl.parallel.advance`; returns generations advanced."""
+        """Apply one chunk returned by :func:`rovermarl.runner.chunk.advance`; returns generations advanced."""
         start, stop = chunk["start"], chunk["stop"]
         if start != self.generation:
             raise RuntimeError(f"seed {self.seed}: chunk starts at {start}, record is at {self.generation}")
         if "initial_score" in chunk:
             self.score[0] = chunk["initial_score"]
         self.score[start + 1:stop + 1] = chunk["score"]
-        for key in HISTORY_KEYS:
-            if key in chunk:
-                if key not in self.history:
-                    tail = chunk[key].shape[1:]
-                    fill = np.nan if chunk[key].dtype.kind == "f" else -1 if key == "switched" else 0
-                    self.history[key] = np.full((self.generations, *tail), fill, dtype=chunk[key].dtype)
-                self.history[key][start:stop] = chunk[key]
-        for key in EVENT_KEYS:
-            self.events[key].append(chunk[key])
+        for name, values in chunk["series"].items():
+            self.history[name][start:stop] = values
+        for file, arrays in chunk["events"].items():
+            for key, values in arrays.items():
+                self.events.setdefault(f"{file}_{key}", []).append(values)
         for key in ("ic_xy", "ic_heading", "genomes"):
             if key in chunk:
                 self.extra[key] = chunk[key]
@@ -78,7 +73,8 @@ class RunRecord:
         """Write atomically; the previous checkpoint is kept as ``<name>.prev``."""
         arrays = {key: value for key, value in self.result().items() if key != "seed"}
         meta = {"seed": self.seed, "generations": self.generations, "generation": self.generation,
-                "config_hash": config_hash, "history_keys": sorted(self.history), "extra_keys": sorted(self.extra),
+                "config_hash": config_hash, "history_keys": list(self.history), "event_keys": list(self.events),
+                "extra_keys": sorted(self.extra),
                 "state": _encode(self.state, arrays)}
         buf = io.BytesIO()
         np.savez(buf, _meta=np.array(json.dumps(meta)), **arrays)
@@ -114,7 +110,7 @@ class RunRecord:
         rec.generation, rec.score = meta["generation"], arrays["score"]
         rec.history = {key: arrays[key] for key in meta["history_keys"]}
         rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
-        rec.events = {key: [arrays[key]] for key in EVENT_KEYS}
+        rec.events = {key: [arrays[key]] for key in meta["event_keys"]}
         rec.state = _decode(meta["state"], arrays)
         return rec
 

@@ -13,21 +13,29 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
+from rovermarl.env.kernel import observers, poi_of
 
-class Recorder:
-    """Switches come from the ``record`` config group (``occupancy``, ``behaviour``; both on if absent)."""
+
+FILES = ("behaviour", "occupancy")   # the result files of :meth:`BehaviourObserver.drain`
+
+
+class BehaviourObserver:
+    """Measures a run's behaviour from the evaluations its algorithm makes (see the module doc).
+
+    Built on the world, the run's initial conditions ``ic`` and the ``record`` switches (``occupancy``,
+    ``behaviour``; on if absent); :meth:`watch` connects it to the run's evaluation, whose ``final_xy`` (E, N, 2)
+    holds the final positions of the team evaluated last. Its own buffers hold the parent team's.
+    """
 
     def __init__(self, world, ic, cfg):
         self.world, self.ic = world, ic
         self.occupancy_on = bool(cfg.get("occupancy", True))
         self.behaviour_on = bool(cfg.get("behaviour", True))
         shape = ic[0].shape                                            # (E, N, 2)
-        self.child_xy = np.empty(shape) if self.occupancy_on else None  # the evaluation writes final positions here
+        self.evaluation = None
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
         self.parent_poi = np.empty(shape[:2], dtype=np.int16)            # POI each rover observes at the end, -1: none
         self._radius = float(world.obs_radius)
@@ -38,11 +46,18 @@ class Recorder:
         self._behaviour: list[tuple[int, float, np.ndarray]] = []
         self._occupancy: list[tuple[int, np.ndarray]] = []
 
+    @property
+    def needs_final(self) -> bool:
+        """Whether the evaluation must keep final positions for this observer."""
+        return self.occupancy_on
+
+    def watch(self, evaluation) -> None:
+        """Read final positions from ``evaluation.final_xy`` (E, N, 2) after each evaluation."""
+        self.evaluation = evaluation
+
     def occupancy(self, final_xy: np.ndarray) -> np.ndarray:
         """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
-        out = np.zeros((final_xy.shape[0], self.world.n_pois), dtype=np.int8)
-        _count(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
-        return out
+        return occupancy(self.world, final_xy)
 
     def observed(self, final_xy: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """The POI each rover observes at the end: final_xy (E, N, 2) -> (E, N) int16, lowest index within
@@ -51,21 +66,21 @@ class Recorder:
         _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
         return out
 
-    def switched(self, mutated: np.ndarray) -> int:
-        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI than under the parents
-        (the team evaluated last against the parent team); -1 if every rover was mutated or occupancy is off."""
+    def evaluated(self, mutated: np.ndarray) -> int:
+        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated last than
+        under the parents; -1 if every rover was mutated or occupancy is off."""
         if not self.occupancy_on:
             return -1
-        return _switched(self.child_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
+        return _switched(self.evaluation.final_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
 
     def start(self, genomes: np.ndarray, score: float) -> None:
-        """Generation 0: the initial team was just evaluated (its final positions are in ``child_xy``)."""
+        """Generation 0: the initial team (genomes (N, P)) was just evaluated."""
         self.accepted(0, genomes, score, True)
 
     def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
         """The team evaluated last (genomes (N, P)) became the parent at ``generation``."""
         if self.occupancy_on:
-            self.child_xy, self.parent_xy = self.parent_xy, self.child_xy
+            self.parent_xy[...] = self.evaluation.final_xy
             self.observed(self.parent_xy, self.parent_poi)
             count = self.occupancy(self.parent_xy)
             if self.count is None or not np.array_equal(count, self.count):
@@ -104,42 +119,30 @@ class Recorder:
         self._behaviour.clear()
         self._occupancy.clear()
 
-    def drain(self) -> dict[str, np.ndarray]:
-        """Events logged since the last drain, as arrays (see module doc); clears them."""
+    def drain(self) -> dict[str, dict[str, np.ndarray]]:
+        """Events logged since the last drain, as arrays per result file (see module doc); clears them."""
         e, n = self.ic[1].shape
         steps, p = self.world.steps, self.world.n_pois
         b, o = self._behaviour, self._occupancy
-        out = {"behaviour_generation": np.array([x[0] for x in b], dtype=np.int64),
-               "behaviour_score": np.array([x[1] for x in b], dtype=np.float64),
-               "behaviour_xy": np.array([x[2] for x in b], dtype=np.float32).reshape(len(b), e, steps + 1, n, 2),
-               "occupancy_generation": np.array([x[0] for x in o], dtype=np.int64),
-               "occupancy_count": np.array([x[1] for x in o], dtype=np.int8).reshape(len(o), e, p)}
+        out = {"behaviour": {"generation": np.array([x[0] for x in b], dtype=np.int64),
+                             "score": np.array([x[1] for x in b], dtype=np.float64),
+                             "xy": np.array([x[2] for x in b], dtype=np.float32).reshape(len(b), e, steps + 1, n, 2)},
+               "occupancy": {"generation": np.array([x[0] for x in o], dtype=np.int64),
+                             "count": np.array([x[1] for x in o], dtype=np.int8).reshape(len(o), e, p)}}
         b.clear()
         o.clear()
         return out
 
 
-@njit(cache=True)
-def _count(final_xy, poi_xy, radius, out):
-    """out[e, j] += rovers of episode e within ``radius`` of POI j: final_xy (E, N, 2), poi_xy (P, 2), out (E, P)."""
-    for e in range(final_xy.shape[0]):
-        for i in range(final_xy.shape[1]):
-            for j in range(poi_xy.shape[0]):
-                dx = poi_xy[j, 0] - final_xy[e, i, 0]
-                dy = poi_xy[j, 1] - final_xy[e, i, 1]
-                if math.sqrt(dx * dx + dy * dy) <= radius:
-                    out[e, j] += 1
+def occupancy(world, final_xy: np.ndarray) -> np.ndarray:
+    """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
+    out = np.zeros((final_xy.shape[0], world.n_pois), dtype=np.int8)
+    _count(final_xy, world.poi_xy, float(world.obs_radius), out)
+    return out
 
 
-@njit(cache=True)
-def _poi(x, y, poi_xy, radius):
-    """The lowest j with (x, y) within ``radius`` of POI j (the reward's test), else -1."""
-    for j in range(poi_xy.shape[0]):
-        dx = poi_xy[j, 0] - x
-        dy = poi_xy[j, 1] - y
-        if math.sqrt(dx * dx + dy * dy) <= radius:
-            return j
-    return -1
+_count = observers   # (final_xy (E, N, 2), poi_xy (P, 2), radius, out (E, P)): out[e, j] += rovers within radius
+_poi = poi_of        # (x, y, poi_xy (P, 2), radius): the lowest POI index within radius (the reward's test), else -1
 
 
 @njit(cache=True)

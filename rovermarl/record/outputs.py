@@ -3,8 +3,8 @@
 Job dir layout::
 
     summary.json
-    runs/seed_XXX/curve.npz               score (G+1), k (G), accepted (G), switched (G) int16, child_score (G),
-                                          probs (G, K)
+    runs/seed_XXX/curve.npz               score (G+1), then the algorithm's declared series (G, ...); for cc11es
+                                          k, accepted, switched int16, child_score, probs (G, K)
     runs/seed_XXX/genomes.npy             final team genomes (N, P)
     runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N)
     runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
@@ -19,14 +19,12 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
+import secrets
 from pathlib import Path
 
 import numpy as np
 
-CURVE_KEYS = ("score", "k", "accepted", "switched", "child_score", "probs")
-_UMASK = os.umask(0)
-os.umask(_UMASK)
+from rovermarl.record.events import FILES as EVENT_FILES
 
 
 @contextlib.contextmanager
@@ -34,9 +32,9 @@ def atomic_open(path: Path, mode: str = "wb"):
     """Open a temp file next to ``path``; rename it onto ``path`` only if the block succeeds."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    tmp = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)   # the umask applies, as to any file
     try:
-        os.chmod(tmp, 0o666 & ~_UMASK)                    # mkstemp makes 0600; results should read like any file
         with os.fdopen(fd, mode) as f:
             yield f
             f.flush()
@@ -52,16 +50,17 @@ def run_dir(job_dir: Path, seed: int) -> Path:
     return Path(job_dir) / "runs" / f"seed_{seed:03d}"
 
 
-def save_run(job_dir: Path, result: dict, config_hash: str = "", write_rrd=None) -> Path:
-    """Write one finished run's files, ``run.json`` last; ``write_rrd(path, result)`` adds the recording."""
+def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", write_rrd=None) -> Path:
+    """Write one finished run's files, ``run.json`` last: ``curve.npz`` holds ``score`` and the declared ``series``
+    (:class:`~rovermarl.algorithms.base.Series`); ``write_rrd(path, result)`` adds the recording."""
     out = run_dir(job_dir, result["seed"])
-    _savez(out / "curve.npz", {k: result[k] for k in CURVE_KEYS if k in result})
+    _savez(out / "curve.npz", {"score": result["score"], **{s.name: result[s.name] for s in series}})
     with atomic_open(out / "genomes.npy") as f:
         np.save(f, result["genomes"])
     _savez(out / "initial_conditions.npz", {"xy": result["ic_xy"], "heading": result["ic_heading"]})
-    _savez(out / "behaviour.npz", {"generation": result["behaviour_generation"], "score": result["behaviour_score"],
-                                   "xy": result["behaviour_xy"]})
-    _savez(out / "occupancy.npz", {"generation": result["occupancy_generation"], "count": result["occupancy_count"]})
+    for file in EVENT_FILES:             # the observer's: key "<file>_<name>" -> <file>.npz[name]
+        prefix = file + "_"
+        _savez(out / f"{file}.npz", {k[len(prefix):]: v for k, v in result.items() if k.startswith(prefix)})
     if write_rrd is not None:
         write_rrd(out / "run.rrd", result)
     write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,

@@ -6,7 +6,6 @@ ones continue from their last good checkpoint, so the results equal those of an 
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import time
@@ -16,29 +15,24 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
-from rovermarl.config import validate
-from rovermarl.evolution import build
-from rovermarl.parallel import plain, run_records
+from rovermarl.parallel import run_records
 from rovermarl.record import checkpoint
 from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
 from rovermarl.record.rerun_log import write_rrd
+from rovermarl.runner.chunk import advance, parts, to_plain
+from rovermarl.runner.identity import config_hash
+from rovermarl.runner.validate import validate
 
 log = logging.getLogger("rovermarl")
-GROUPS = ("setup", "env", "policy", "mutation", "selection", "k", "team", "parallel", "record")
-NOT_RESULTS = ("seeds", "seed", "levels", "parallel", "ray", "record", "checkpoint", "resume")
-
-
-def config_hash(cfg: DictConfig) -> str:
-    """Hash of everything that determines a run's numbers (not seeds count, backend, recording or paths)."""
-    job = {k: v for k, v in plain(cfg).items() if k not in NOT_RESULTS}
-    return hashlib.sha256(json.dumps(job, sort_keys=True, default=str).encode()).hexdigest()
 
 
 def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | None = None) -> dict:
     """Run ``cfg.seeds`` independent runs into ``job_dir``; returns the summary (also summary.json)."""
     validate(cfg)
-    job_dir, key = Path(job_dir), config_hash(cfg)
+    job, job_dir = to_plain(cfg), Path(job_dir)
+    key, built = config_hash(job), parts(job)
+    series = built.algorithm.series
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
     scores, records = {}, []
     for seed in seeds:
@@ -54,19 +48,18 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
             log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
         elif problems:
             log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
-        records.append(rec or RunRecord(seed, cfg.generations))
+        records.append(rec or RunRecord(seed, cfg.generations, series))
     if scores:
         log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))
     summary_path = job_dir / "summary.json"
     if not records and summary_path.exists():
         return json.loads(summary_path.read_text())
 
-    parts = build(cfg)
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         job_dir.mkdir(parents=True, exist_ok=True)
         with atomic_open(job_dir / "config.yaml", "w") as f:
-            f.write(OmegaConf.to_yaml(plain(cfg)))
-    rrd = partial(_rrd, world=parts.world, record=cfg.record, arms=parts.selector.arms) if cfg.record.rerun else None
+            f.write(OmegaConf.to_yaml(job))
+    rrd = partial(_rrd, world=built.world, record=cfg.record, series=series) if cfg.record.rerun else None
     every = max(cfg.checkpoint.every, 1)
     t0 = time.perf_counter()
     start = sum(rec.generation for rec in records)
@@ -77,14 +70,14 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
             bar.update(advanced)
             out = run_dir(job_dir, rec.seed)
             if rec.done:
-                save_run(job_dir, rec.result(), key, rrd)
+                save_run(job_dir, rec.result(), series, key, rrd)
                 checkpoint.remove(out / "checkpoint.bin")
                 scores[rec.seed] = rec.score
                 bar.set_postfix_str(f"runs {len(scores)}/{len(seeds)}")
             elif rec.generation // every > (rec.generation - advanced) // every:
                 rec.save(out / "checkpoint.bin", key)
 
-        run_records(cfg, records, on_chunk)
+        run_records(cfg, job, records, on_chunk, advance)
     wall = time.perf_counter() - t0
     summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
                         team_evals=sum(rec.generations for rec in records) - start + fresh)
@@ -97,6 +90,6 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     return summary
 
 
-def _rrd(path: Path, result: dict, world, record, arms) -> None:
-    write_rrd(path, result, world, every=record.every, steps=record.steps, recording_id=f"seed_{result['seed']:03d}",
-              arms=arms)
+def _rrd(path: Path, result: dict, world, record, series) -> None:
+    write_rrd(path, result, world, series=series, every=record.every, steps=record.steps,
+              recording_id=f"seed_{result['seed']:03d}")

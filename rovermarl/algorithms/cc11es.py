@@ -1,0 +1,102 @@
+"""CC-(1+1)-ES (SPEC section 6): each rover owns a (1+1)-ES; each generation mutates k of them together and keeps
+all k children or none, on the team's shared score.
+
+Its operators are config groups of their own: ``k`` (fixed or a k-selector such as EXP3), ``team``
+(heterogeneous or homogeneous), ``mutation`` and ``selection`` (soft or strict).
+
+Run state (a plain dict): ``parents`` (M, P) (M = N, or 1 for a homogeneous team), ``score`` (the parents' F),
+the bit-generator states ``rng_mut`` (which rovers, which changes) and ``rng_sel`` (the selector's draws), and the
+selector's ``state_dict``.
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from rovermarl import errors
+from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator
+
+
+class CC11ES(Algorithm):
+    """Built from ``conf/algorithm/cc11es.yaml``: the nodes of the ``k``, ``selection``, ``team`` and ``mutation``
+    groups, and the initial genome range (``policy.init_low``, ``policy.init_high``)."""
+
+    def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0):
+        super().__init__(world)
+        n = world.n_rovers
+        self.low = errors.number("policy.init_low", init_low)
+        self.high = errors.number("policy.init_high", init_high)
+        if self.high <= self.low:
+            raise errors.ConfigError("policy.init_high", init_high, f"must be greater than policy.init_low={init_low}")
+        self.composition = build_operator(team, "team", n_agents=n)
+        self.mutate = build_operator(mutation, "mutation")
+        self.accept = build_operator(selection, "selection")
+        self.selector = build_operator(k, "k", n_agents=n, f_max=world.max_return)
+        arms = tuple(self.selector.arms)
+        self.allowed = frozenset(a for a in arms if 1 <= a <= n) if arms else frozenset(range(1, n + 1))
+        self.series = (
+            Series("k", "int16", doc="rovers mutated"),
+            Series("accepted", "bool", doc="children kept"),
+            Series("switched", "int16", fill=-1, doc="episodes in which an unmutated rover ends at another POI "
+                                                      "than under the parents (-1: not measured)"),
+            Series("child_score", "float64", fill=np.nan, doc="F of the evaluated team"),
+        )
+        if self.selector.probs is not None:
+            self.series += (Series("probs", "float64", (len(arms),), np.nan, "the selector's probability of each k "
+                                   "before the generation", tuple(f"k{a}" for a in arms), "bandit"),)
+
+    def _init(self, seeds, evaluate):
+        s_init, s_mut, s_sel = seeds.spawn(3)
+        parents = self.composition.init(self.world.n_params, self.low, self.high, np.random.default_rng(s_init))
+        score = evaluate(self.composition.genomes(parents))
+        return {"parents": parents, "score": score, "rng_mut": np.random.default_rng(s_mut).bit_generator.state,
+                "rng_sel": np.random.default_rng(s_sel).bit_generator.state,
+                "selector": copy.deepcopy(self.selector).state_dict()}, score
+
+    def _team(self, state):
+        return self.composition.genomes(state["parents"])
+
+    def _advance(self, state, generation, n, evaluate, observer):
+        team, mutate, accept = self.composition, self.mutate, self.accept
+        selector = copy.deepcopy(self.selector)
+        selector.load_state_dict(state["selector"])
+        rng_mut, rng_sel = _generator(state["rng_mut"]), _generator(state["rng_sel"])
+        parents, f_parent = np.array(state["parents"], dtype=np.float64), float(state["score"])
+        h = {s.name: s.empty(n) for s in self.series}
+        score = np.empty(n)
+        for t in range(n):
+            g = generation + t
+            if "probs" in h:
+                h["probs"][t] = selector.probs                                # before this generation's choice
+            k = self._check(selector.choose(rng_sel), selector)               # 1. choose k
+            chosen = team.pick(k, rng_mut)                                    # 2. k distinct rovers
+            children = team.mutate(parents, chosen, mutate, rng_mut)          # 3. mutate them
+            genomes = team.genomes(children)                                  # (N, P): the team the world sees
+            f_child = evaluate(genomes)                                       # 4. evaluate the team
+            h["switched"][t] = observer.evaluated(team.mutated(chosen))       #    did unmutated rovers switch POI?
+            accepted = accept(f_child, f_parent)                              # 5. all k children or none
+            selector.update(k, f_child, f_parent)                             # 6. reward the selector
+            if accepted:                                                      # 7. the observer logs the change
+                observer.accepted(g + 1, genomes, f_child, f_child != f_parent)
+                parents, f_parent = children, f_child
+            h["k"][t], h["accepted"][t], h["child_score"][t], score[t] = k, accepted, f_child, f_parent
+        state = {"parents": parents, "score": f_parent, "rng_mut": rng_mut.bit_generator.state,
+                 "rng_sel": rng_sel.bit_generator.state, "selector": selector.state_dict()}
+        return state, {"score": score, **h}
+
+    def _check(self, k, selector) -> int:
+        """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""
+        if k not in self.allowed or isinstance(k, bool):
+            raise AlgorithmError(f"k-selector {type(selector).__name__} chose k={k!r}; allowed: "
+                                 f"{', '.join(map(str, sorted(self.allowed)))} (its arms within 1..N="
+                                 f"{self.world.n_rovers})")
+        return k
+
+
+def _generator(state: dict) -> np.random.Generator:
+    """A generator continuing from a bit-generator ``state`` (of any numpy bit generator)."""
+    bit = getattr(np.random, state["bit_generator"])()
+    bit.state = state
+    return np.random.Generator(bit)

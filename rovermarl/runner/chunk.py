@@ -1,0 +1,155 @@
+"""One chunk of one run: advance run ``seed`` of a config from a state by n generations (any algorithm).
+
+A run is a pure function of ``(config, seed)``. Its ``SeedSequence(seed)`` gives stream 0 to the initial conditions
+(drawn here, the same in every chunk) and the next ones to the algorithm. :func:`advance` rebuilds the run from its
+compact state, advances it and returns the chunk; Ray can therefore rerun a chunk on another worker after a crash
+and get the same numbers. Evaluation is passed in (local by default, IC shards from :mod:`rovermarl.parallel`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from omegaconf import DictConfig, OmegaConf
+
+from rovermarl import errors
+from rovermarl.algorithms.base import Algorithm, build_operator
+from rovermarl.env import World
+from rovermarl.record.events import BehaviourObserver
+
+EvaluationFactory = Callable[[World, tuple, bool], "Evaluation"]
+
+
+@dataclass(frozen=True, eq=False)
+class Parts:
+    """What every run of a config is built from: the world, the algorithm and the ``record`` switches."""
+
+    world: World
+    algorithm: Algorithm
+    record: dict
+
+
+def build(cfg) -> Parts:
+    """World and algorithm of a composed config (a ``DictConfig`` or plain dict); bad values raise ConfigError."""
+    cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
+    world = World.from_config(cfg)
+    try:
+        algorithm = build_operator(cfg.get("algorithm"), "algorithm", world=world)
+    except errors.ConfigError as e:                  # keys of the groups an algorithm reads are named as they are
+        head = e.key.split(".")[1] if e.key.startswith("algorithm.") else ""
+        raise (errors.ConfigError(e.key.partition(".")[2], e.value, e.requirement) if head in cfg else e) from None
+    if not isinstance(algorithm, Algorithm):
+        raise errors.ConfigError("algorithm._target_", cfg.algorithm._target_,
+                                 "must name a subclass of rovermarl.algorithms.Algorithm")
+    record = OmegaConf.to_container(cfg.record, resolve=True) if "record" in cfg else {}
+    return Parts(world, algorithm, record)
+
+
+_CACHE: dict[str, Parts] = {}                         # per process: the built parts of each config
+
+
+def parts(cfg: dict) -> Parts:
+    """:func:`build` of a plain config, cached per process (a job and its chunks build once)."""
+    key = json.dumps(cfg, sort_keys=True, default=str)
+    if key not in _CACHE:
+        if len(_CACHE) > 16:
+            _CACHE.clear()
+        _CACHE[key] = build(cfg)
+    return _CACHE[key]
+
+
+class Evaluation:
+    """``evaluate(genomes (N, P)) -> F`` on a run's initial conditions, in this process. With ``keep_final``,
+    :attr:`final_xy` (E, N, 2) holds the final positions of the team evaluated last."""
+
+    def __init__(self, world: World, ic: tuple, keep_final: bool = True):
+        self.world, self.ic = world, ic
+        self.final_xy = np.empty(ic[0].shape) if keep_final else None
+
+    def __call__(self, genomes: np.ndarray) -> float:
+        return self.world.evaluate(genomes, self.ic, self.final_xy)
+
+
+class Run:
+    """One run in this process. ``Run(cfg, seed)`` starts it (evaluating the initial team); ``state=`` continues
+    from :meth:`state`, bit-identical to a run that never stopped.
+
+    >>> run = Run(compose_config("k=adaptive", "generations=50"), seed=0)   # doctest: +SKIP
+    >>> arrays = run.advance(50)          # score (50,), k (50,), probs (50, 4), ...
+    """
+
+    def __init__(self, cfg, seed: int, state: dict | None = None, evaluation: EvaluationFactory = Evaluation):
+        plain = cfg if isinstance(cfg, dict) else to_plain(cfg)
+        self.parts = p = parts(plain)
+        self.seed, self.generations = int(seed), int(plain["generations"])
+        seeds = np.random.SeedSequence(self.seed)
+        self.ic = p.world.initial_conditions(np.random.default_rng(seeds.spawn(1)[0]))
+        self.observer = BehaviourObserver(p.world, self.ic, p.record)
+        self.evaluate = evaluation(p.world, self.ic, self.observer.needs_final)
+        self.observer.watch(self.evaluate)
+        if state is None:
+            self.generation = 0
+            self.algo_state, self.initial_score = p.algorithm.init(seeds, self.evaluate)
+            self.observer.start(self.team, self.initial_score)
+        else:
+            self.generation, self.algo_state = int(state["generation"]), state["algorithm"]
+            self.initial_score = None
+            self.observer.load_state_dict(state["observer"], self.team, self.score)
+
+    @property
+    def team(self) -> np.ndarray:
+        """The current team's genomes (N, P)."""
+        return self.parts.algorithm.team(self.algo_state)
+
+    @property
+    def score(self) -> float:
+        return self.parts.algorithm.score(self.algo_state)
+
+    @property
+    def done(self) -> bool:
+        return self.generation >= self.generations
+
+    def advance(self, n: int) -> dict[str, np.ndarray]:
+        """Up to ``n`` more generations (never past the budget); returns their arrays (score and the algorithm's
+        declared series)."""
+        n = max(0, min(n, self.generations - self.generation))
+        self.algo_state, arrays = self.parts.algorithm.advance(self.algo_state, self.generation, n, self.evaluate,
+                                                               self.observer)
+        self.generation += n
+        if self.done:
+            self.observer.finish(self.generation, self.team, self.score)
+        return arrays
+
+    def state(self) -> dict:
+        """What the next generation depends on (plain arrays, numbers and dicts)."""
+        return {"generation": self.generation, "algorithm": self.algo_state, "observer": self.observer.state_dict()}
+
+
+def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: EvaluationFactory = Evaluation) -> dict:
+    """The chunk function: advance run ``seed`` of plain config ``cfg`` by up to ``n`` generations from ``state``
+    (None: from its start).
+
+    Returns ``seed``, ``start``, ``stop``, the new ``state``, ``score`` (stop - start,), ``series`` (the algorithm's
+    arrays of those generations), ``events`` (the observer's, per result file); when starting also ``initial_score``
+    and the initial conditions ``ic_xy`` (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes``.
+    """
+    run = Run(cfg, seed, state, evaluation)
+    start = run.generation
+    arrays = run.advance(n)
+    chunk = {"seed": run.seed, "start": start, "stop": run.generation, "state": run.state(),
+             "score": arrays.pop("score"), "series": arrays, "events": run.observer.drain()}
+    if state is None:
+        chunk.update(initial_score=run.initial_score, ic_xy=run.ic[0], ic_heading=run.ic[1])
+    if run.done:
+        chunk["genomes"] = run.team
+    return chunk
+
+
+def to_plain(cfg: DictConfig) -> dict:
+    """A composed config as plain containers (what crosses to workers), without Hydra's own node."""
+    out = OmegaConf.to_container(cfg, resolve=True)
+    out.pop("hydra", None)
+    return out

@@ -1,0 +1,24 @@
+"""What identifies a run and names a job's output dir: the one home of the keys left out of each.
+
+- ``RUNTIME``: top-level keys that choose how and where runs execute and what they record, never their numbers
+  (backend, Ray, recording, checkpoint interval, resume, Hydra's own node).
+- A run's identity (:func:`config_hash`) also leaves out ``seeds`` and ``seed`` (a run has its own seed) and
+  ``levels`` (only the job summary reads them): a finished run is reused whatever those say.
+- A job's dir name (:data:`NOT_IN_DIR_NAMES`) keeps ``seed`` and ``levels`` (they change what the job dir holds) but
+  not ``seeds``, so raising the seed count reuses the runs already done.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+
+RUNTIME = ("parallel", "ray", "record", "checkpoint", "resume", "hydra")
+NOT_IN_RUN_IDENTITY = (*RUNTIME, "seeds", "seed", "levels")
+NOT_IN_DIR_NAMES = (*RUNTIME, "seeds")
+
+
+def config_hash(plain: dict) -> str:
+    """Hash of everything in a plain job config that determines a run's numbers."""
+    job = {k: v for k, v in plain.items() if k not in NOT_IN_RUN_IDENTITY}
+    return hashlib.sha256(json.dumps(job, sort_keys=True, default=str).encode()).hexdigest()

@@ -1,0 +1,83 @@
+"""Checks of a composed job config, run before any work (and before Ray starts)."""
+
+from __future__ import annotations
+
+from functools import cache
+
+from omegaconf import DictConfig, OmegaConf
+
+from rovermarl import errors
+from rovermarl.resources import CONF_DIR
+from rovermarl.runner.chunk import parts, to_plain
+
+
+@cache
+def top_level() -> frozenset[str]:
+    """The allowed top-level keys: the package's config groups and the run-level keys of ``conf/config.yaml``."""
+    groups = {p.name for p in CONF_DIR.iterdir() if p.is_dir() and p.name != "__pycache__"}
+    run_keys = set(OmegaConf.load(CONF_DIR / "config.yaml")) - {"defaults", "hydra"}
+    return frozenset(groups | run_keys)
+
+
+def validate(cfg: DictConfig) -> None:
+    """Raise :class:`~rovermarl.errors.ConfigError` naming the first bad key of a composed job config."""
+    allowed = top_level()
+    for key in cfg:
+        if key not in allowed and key != "hydra":
+            raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
+                                     ", ".join(sorted(allowed)))
+    _keys("setup", cfg.get("setup"), {"name", "coupling", "value"}, {"name", "coupling", "value"})  # World: missing
+    _keys("env", cfg.get("env"), None)  # World names unknown env keys
+    _keys("policy", cfg.get("policy"), {"hidden", "init_low", "init_high"})
+    _keys("ray", cfg.get("ray"), {"address", "num_cpus"}, {"address", "num_cpus"})
+    errors.integer("seeds", cfg.get("seeds"), 1)
+    errors.integer("seed", cfg.get("seed"), 0)
+    errors.integer("generations", cfg.get("generations"), 1)
+    levels = cfg.get("levels")
+    if not OmegaConf.is_list(levels):
+        raise errors.ConfigError("levels", levels, "must be a list of score levels")
+    for i, lv in enumerate(levels):
+        errors.number(f"levels[{i}]", lv)
+    _flag("resume", cfg.get("resume"))
+    _keys("checkpoint", cfg.get("checkpoint"), {"every"})
+    errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
+    rec = cfg.get("record")
+    _keys("record", rec, {"rerun", "behaviour", "occupancy", "every", "steps"})
+    for key in ("rerun", "behaviour", "occupancy", "steps"):
+        _flag(f"record.{key}", rec.get(key))
+    errors.integer("record.every", rec.get("every"), 1)
+    par = cfg.get("parallel")
+    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards"}, {"workers", "retries", "ic_shards"})
+    errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
+    errors.integer("parallel.chunk", par.get("chunk"), 1)
+    errors.integer("parallel.retries", par.get("retries", 0), 0)
+    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1)
+    if par.get("workers") is not None:
+        errors.integer("parallel.workers", par.workers, 1)
+    address = cfg.ray.get("address")
+    if address is not None and (not isinstance(address, str) or not address):
+        raise errors.ConfigError("ray.address", address, "must be null, 'auto' or 'HOST:PORT'")
+    if cfg.ray.get("num_cpus") is not None:
+        errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
+    parts(to_plain(cfg))                              # builds world and algorithm once; the job reuses them
+
+
+def _flag(key: str, value) -> None:
+    if not isinstance(value, bool):
+        raise errors.ConfigError(key, value, "must be true or false")
+
+
+def _keys(section: str, node, allowed: set[str] | None, optional: set[str] = frozenset()) -> None:
+    """``node`` must be a mapping; with ``allowed``, of those keys only (all but ``optional`` required)."""
+    if not isinstance(node, DictConfig):
+        keys = " with keys " + ", ".join(sorted(allowed)) if allowed else ""
+        raise errors.ConfigError(section, node, f"must be a mapping{keys}")
+    if allowed is None:
+        return
+    for key in node:
+        if key not in allowed and key != "_target_":
+            raise errors.ConfigError(f"{section}.{key}", node.get(key), "unknown key; allowed: " +
+                                     ", ".join(sorted(allowed)))
+    for key in allowed - optional:
+        if key not in node:
+            raise errors.ConfigError(f"{section}.{key}", None, "missing")
