@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
@@ -12,8 +11,7 @@ from omegaconf import OmegaConf
 
 from rovermarl import errors, policy
 from rovermarl.env import kernel
-
-CONF_DIR = Path(__file__).resolve().parents[2] / "conf"
+from rovermarl.resources import CONF_DIR
 
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
