@@ -85,7 +85,7 @@ NUMBERS = {  # key: (lo, hi, lo_open); None: unbounded
     "env.v_max": (0, None, False), "env.start_box": (0, None, False), "env.poi_distance": (0, None, False),
     "env.obs_radius": (0, None, True), "env.sensor_range": (0, None, True),
 }
-FLAGS = ["resume", "record.rerun", "record.behaviour", "record.occupancy", "record.steps", "selection.strict"]
+FLAGS = ["record.rerun", "record.behaviour", "record.occupancy", "record.steps", "selection.strict"]
 NEEDS = {"k.gamma": ["k=adaptive"]}
 SPECIAL = {"true", "false", "null", "nan", "inf", "infinity"}  # words Hydra reads as bool, null or float
 
@@ -200,7 +200,8 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["k=adaptive", "k.gamma=[1]"], "k.gamma=[1]: must be a finite number"),
     (["selection.strict=maybe"], "selection.strict=maybe: must be true or false"),
     (["record.rerun=3"], "record.rerun=3: must be true or false"),
-    (["resume=yes"], "resume=yes: must be true or false"),
+    (["resume=yes"], "resume=yes: must be true, false or strict"),
+    (["resume=1"], "resume=1: must be true, false or strict"),
     (["levels=5"], "levels=5: must be a list"),
     (["levels=[a,4]"], "levels[0]=a: must be a finite number"),
     (["k=adaptive", "k.reward=best"], "k.reward=best: must be one of improved, gain"),

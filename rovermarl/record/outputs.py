@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rovermarl.record.events import FILES as EVENT_FILES
+from rovermarl.record.provenance import provenance
 
 
 @contextlib.contextmanager
@@ -64,16 +65,18 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     if write_rrd is not None:
         write_rrd(out / "run.rrd", result)
     write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
-                                  "final_score": float(result["score"][-1]), "config_hash": config_hash})
+                                  "final_score": float(result["score"][-1]), "config_hash": config_hash,
+                                  "provenance": provenance()})
     return out
 
 
-def finished(out: Path, config_hash: str) -> bool:
-    """Whether ``out`` holds a finished run of the config with this hash."""
+def finished(out: Path, config_hash: str) -> dict | None:
+    """The ``run.json`` of ``out`` if it holds a finished run of the config with this hash, else None."""
     try:
-        return json.loads((Path(out) / "run.json").read_text()).get("config_hash") == config_hash
+        meta = json.loads((Path(out) / "run.json").read_text())
     except (OSError, ValueError):
-        return False
+        return None
+    return meta if isinstance(meta, dict) and meta.get("config_hash") == config_hash else None
 
 
 def load_score(out: Path) -> np.ndarray:
@@ -106,6 +109,7 @@ def summarize(choices: dict, seeds: list[int], scores: dict[int, np.ndarray], le
         "wall_time_s": wall_time_s,
         "team_evals": team_evals,
         "team_evals_per_s": team_evals / wall_time_s if wall_time_s > 0 else None,
+        "provenance": provenance(),
     }
 
 

@@ -19,6 +19,7 @@ from rovermarl.parallel import run_records
 from rovermarl.record import checkpoint
 from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
+from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
 from rovermarl.runner.chunk import advance, parts, to_plain
 from rovermarl.runner.identity import config_hash
@@ -34,10 +35,14 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
-    scores, records = {}, []
+    scores, records, other_code = {}, [], []
     for seed in seeds:
         out = run_dir(job_dir, seed)
-        if cfg.resume and finished(out, key):
+        meta = finished(out, key) if cfg.resume else None
+        if meta is not None and not same_code(meta.get("provenance")):
+            other_code.append(meta.get("provenance"))
+            meta = None if cfg.resume == "strict" else meta
+        if meta is not None:
             scores[seed] = load_score(out)
             continue
         problems: list[str] = []
@@ -49,6 +54,10 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         elif problems:
             log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
         records.append(rec or RunRecord(seed, cfg.generations, series))
+    if other_code:
+        log.warning("%s: %d finished run(s) were made by other code (%s; this is %s): %s", name, len(other_code),
+                    describe(other_code[0]), describe(provenance()),
+                    "recomputed (resume=strict)" if cfg.resume == "strict" else "kept; resume=strict recomputes them")
     if scores:
         log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))
     summary_path = job_dir / "summary.json"

@@ -38,7 +38,8 @@ def validate(cfg: DictConfig) -> None:
         raise errors.ConfigError("levels", levels, "must be a list of score levels")
     for i, lv in enumerate(levels):
         errors.number(f"levels[{i}]", lv)
-    _flag("resume", cfg.get("resume"))
+    if cfg.get("resume") != "strict":
+        _flag("resume", cfg.get("resume"), "true, false or strict")
     _keys("checkpoint", cfg.get("checkpoint"), {"every"})
     errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
     rec = cfg.get("record")
@@ -62,9 +63,9 @@ def validate(cfg: DictConfig) -> None:
     parts(to_plain(cfg))                              # builds world and algorithm once; the job reuses them
 
 
-def _flag(key: str, value) -> None:
+def _flag(key: str, value, allowed: str = "true or false") -> None:
     if not isinstance(value, bool):
-        raise errors.ConfigError(key, value, "must be true or false")
+        raise errors.ConfigError(key, value, f"must be {allowed}")
 
 
 def _keys(section: str, node, allowed: set[str] | None, optional: set[str] = frozenset()) -> None:

@@ -1,0 +1,58 @@
+"""(1+lambda) random search over the whole team: a complete algorithm plug-in, one class plus one yaml.
+
+Each generation draws ``lam`` child teams, each the parent team with ``N(0, sigma^2)`` added to every parameter
+of every rover, evaluates them all and keeps the best child if it scores at least as well as the parent. A
+generation therefore costs ``lam`` team evaluations. Besides the score it records one series of its own,
+``best_child`` (the best child's score in each generation).
+
+Run it from the repository root (``python -m`` puts the current directory on the import path)::
+
+    python -m rovermarl.train algorithm=random_search hydra.searchpath=[file://examples/random_search] \
+        generations=200 seeds=2
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rovermarl import errors
+from rovermarl.algorithms import Algorithm, Series
+
+
+class RandomSearch(Algorithm):
+    """State: ``team`` (N, P), its ``score``, and ``rng`` (the bit-generator state of the mutation stream)."""
+
+    def __init__(self, world, lam: int = 4, sigma: float = 0.1, init_low: float = -2.0, init_high: float = 2.0):
+        super().__init__(world)
+        self.lam = errors.integer("lam", lam, 1)
+        self.sigma = errors.number("sigma", sigma, 0)
+        self.low, self.high = errors.number("init_low", init_low), errors.number("init_high", init_high)
+        self.series = (Series("best_child", "float64", fill=np.nan, doc="score of the best of the lam children"),)
+
+    def _init(self, seeds, evaluate):
+        s_init, s_mut = seeds.spawn(2)
+        shape = (self.world.n_rovers, self.world.n_params)
+        team = np.random.default_rng(s_init).uniform(self.low, self.high, shape)
+        score = evaluate(team)
+        return {"team": team, "score": score, "rng": np.random.default_rng(s_mut).bit_generator.state}, score
+
+    def _team(self, state):
+        return state["team"]
+
+    def _advance(self, state, generation, n, evaluate, observer):
+        rng = np.random.Generator(np.random.PCG64())
+        rng.bit_generator.state = state["rng"]
+        team, score = state["team"], float(state["score"])
+        best_child, after = np.empty(n), np.empty(n)
+        for t in range(n):
+            children = team + rng.normal(0.0, self.sigma, (self.lam, *team.shape))   # (lam, N, P)
+            scores = np.array([evaluate(child) for child in children])
+            best = int(np.argmax(scores))
+            if scores[best] >= score:
+                if best != self.lam - 1:
+                    evaluate(children[best])             # the observer reads the team evaluated last
+                observer.accepted(generation + t + 1, children[best], scores[best], scores[best] != score)
+                team, score = children[best], float(scores[best])
+            best_child[t], after[t] = scores[best], score
+        return {"team": team, "score": score, "rng": rng.bit_generator.state}, {"score": after,
+                                                                                  "best_child": best_child}
