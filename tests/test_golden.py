@@ -1,0 +1,20 @@
+"""The current code gives bit-identical arrays to commit 4c4ae3c on a fixed set of CLI jobs.
+
+The jobs and the digest are in ``tests/golden_jobs.py``; the reference digests in
+``tests/data/golden_4c4ae3c.json`` were made from 4c4ae3c by ``tests/make_golden.py``.
+"""
+
+from pathlib import Path
+
+from tests.conftest import ROOT
+from tests.golden_jobs import GROUPS, JOBS, command, compare, digest_tree, job_dirs, load_golden, run_all
+
+
+def test_cli_jobs_bit_identical_to_4c4ae3c(tmp_path):
+    golden = load_golden()
+    now = {g: " ".join(command(g, Path("<out>"))[1:]) for g in GROUPS}
+    assert golden["commands"] == now, "the golden jobs changed: regenerate the golden file from 4c4ae3c"
+    run_all(tmp_path, cwd=ROOT, pythonpath=str(ROOT))
+    assert job_dirs(tmp_path) == {g: sorted(j) for g, j in JOBS.items()}, "job dir names changed"
+    problem = compare(golden["digests"], digest_tree(tmp_path))
+    assert problem is None, problem
