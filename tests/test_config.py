@@ -98,3 +98,16 @@ def test_bad_config_never_starts_ray(argv, key, monkeypatch, capsys):
 
 def test_conf_dir_is_the_top_level_conf():
     assert CONF_DIR == Path(__file__).resolve().parents[1] / "conf"
+
+
+def test_a_job_builds_its_world_and_algorithm_once(tmp_path, monkeypatch):
+    """Validation before the launch and the job itself share one build per config (per process)."""
+    from rovermarl.runner import chunk
+    calls = []
+    real = chunk.build
+    monkeypatch.setattr(chunk, "build", lambda cfg: calls.append(1) or real(cfg))
+    monkeypatch.setattr(chunk, "_CACHE", {})
+    train.main(["-m", "k=1,2", "generations=20", "seeds=2", "parallel=serial", "record=off",
+                f"hydra.sweep.dir={tmp_path / 'sweep'}", "hydra.callbacks={}"])
+    assert len(list((tmp_path / "sweep").glob("*/runs/*/run.json"))) == 4
+    assert len(calls) == 2                                        # one per job
