@@ -1,0 +1,123 @@
+"""Study launchers never write into committed results: a run at another budget exports into outputs/results/.
+
+The launcher runs in a temporary git clone of this checkout whose working tree (tracked and untracked, not ignored
+files, as they are now) is committed there, so the clone starts clean and `git status` shows what the run changed.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+GIT = ["git", "-c", "user.name=rovermarl tests", "-c", "user.email=tests@rovermarl.invalid", "-c", "gc.auto=0"]
+
+pytestmark = pytest.mark.skipif(shutil.which("git") is None or not (ROOT / ".git").exists(),
+                                reason="needs git and a git checkout")
+
+
+def git(*args: str, cwd: Path) -> str:
+    return subprocess.run([*GIT, *args], cwd=cwd, check=True, capture_output=True, text=True).stdout
+
+
+def snapshot_clone(dest: Path) -> Path:
+    """``git clone`` of ROOT, with ROOT's current working tree committed in the clone (so it starts clean)."""
+    git("clone", "--quiet", "--no-hardlinks", str(ROOT), str(dest), cwd=ROOT)
+    files = git("ls-files", "-z", "--cached", "--others", "--exclude-standard", cwd=ROOT).split("\0")
+    files = {f for f in files if f and (ROOT / f).is_file()}
+    for f in set(git("ls-files", "-z", cwd=dest).split("\0")) - files - {""}:
+        (dest / f).unlink()
+    for f in files:
+        (dest / f).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(ROOT / f, dest / f)
+    git("add", "--all", cwd=dest)
+    git("commit", "--quiet", "--allow-empty", "-m", "working tree snapshot", cwd=dest)
+    assert git("status", "--porcelain", cwd=dest) == ""
+    return dest
+
+
+def launch(clone: Path, script: str, *overrides: str, **env: str) -> subprocess.CompletedProcess:
+    inherited = {k: v for k, v in os.environ.items() if k not in ("GENERATIONS", "SEEDS", "OUT", "RESULTS")}
+    full_env = {**inherited, "PYTHON": sys.executable, **env}
+    return subprocess.run(["bash", f"launchers/{script}", *overrides], cwd=clone, env=full_env,
+                          capture_output=True, text=True, timeout=900)
+
+
+@pytest.fixture(scope="module")
+def clone(tmp_path_factory) -> Path:
+    return snapshot_clone(tmp_path_factory.mktemp("launchers") / "clone")
+
+
+# Stands in for Python in the fast test: records each command and writes where the real one writes (the train
+# runs into hydra.sweep.dir, export into its second argument, plot into RESULTS/figures, claims into RESULTS).
+FAKE_PYTHON = r"""#!/usr/bin/env bash
+set -eu
+echo "$*" >> "$LAUNCH_LOG"
+case "$2" in
+    rovermarl.train) for a in "$@"; do case "$a" in hydra.sweep.dir=*) mkdir -p "${a#*=}/figures" ;; esac; done ;;
+    rovermarl.analysis) if [ "$3" = export ]; then mkdir -p "$5" && echo {} > "$5/compute.json";
+                        else echo claims > "$4/claims.md"; fi ;;
+    rovermarl.plot) mkdir -p "$3/figures" && echo png > "$3/figures/curves_solo.png" ;;
+esac
+"""
+
+
+def test_a_small_paper_study_writes_only_into_its_budget_dir(clone, tmp_path):
+    """Fast: the launchers' own logic, with a stand-in for Python (the real pipeline: the slow test below)."""
+    fake = tmp_path / "python"
+    fake.write_text(FAKE_PYTHON)
+    fake.chmod(0o755)
+    log = tmp_path / "launch.log"
+    proc = launch(clone, "paper.sh", "parallel=serial", GENERATIONS="200", SEEDS="2", PYTHON=str(fake),
+                  LAUNCH_LOG=str(log))
+    assert proc.returncode == 0, proc.stderr
+    assert git("status", "--porcelain", "--untracked-files=all", cwd=clone) == ""
+    results = "outputs/results/paper_g200_s2"
+    commands = log.read_text().splitlines()
+    assert len(commands) == 9                                      # 6 sweeps, export, plot, claims
+    assert all(c.endswith("generations=200 seeds=2 hydra.sweep.dir=outputs/paper") for c in commands[:6])
+    assert commands[6:] == [f"-m rovermarl.analysis export outputs/paper {results} --generations 200",
+                            f"-m rovermarl.plot {results} --format png --xscale log",
+                            f"-m rovermarl.analysis claims {results}"]
+    assert (clone / results / "claims.md").is_file() and (clone / results / "figures" / "curves_solo.png").is_file()
+
+
+@pytest.mark.skipif(os.environ.get("ROVERMARL_SLOW_LAUNCHER_TEST") != "1",
+                    reason="the real small study takes minutes: set ROVERMARL_SLOW_LAUNCHER_TEST=1")
+def test_a_real_small_paper_study_leaves_the_committed_results_alone(tmp_path):
+    clone = snapshot_clone(tmp_path / "clone")
+    proc = launch(clone, "paper.sh", "parallel=serial", GENERATIONS="200", SEEDS="2")
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert git("status", "--porcelain", "--untracked-files=all", cwd=clone) == ""   # nothing modified or added
+    results = clone / "outputs" / "results" / "paper_g200_s2"
+    assert (results / "claims.md").is_file() and (results / "compute.json").is_file()
+    assert any((results / "figures").glob("*.png"))
+
+
+@pytest.mark.parametrize("script, study", [("paper.sh", "paper"), ("selectors.sh", "selectors")])
+def test_an_explicit_tracked_results_dir_is_refused_for_another_budget(clone, script, study):
+    proc = launch(clone, script, GENERATIONS="100", SEEDS="2", RESULTS=f"results/{study}", PYTHON="false")
+    assert proc.returncode == 2
+    assert f"RESULTS=results/{study} holds committed results" in proc.stderr
+    assert git("status", "--porcelain", "--untracked-files=all", cwd=clone) == ""
+
+
+@pytest.mark.parametrize("script, env, overrides, expected", [
+    ("paper.sh", {}, (), "results/paper"),
+    ("paper.sh", {"GENERATIONS": "200000", "SEEDS": "16"}, ("ray.address=auto", "parallel.workers=8"),
+     "results/paper"),
+    ("paper.sh", {"GENERATIONS": "2000", "SEEDS": "4"}, (), "outputs/results/paper_g2000_s4"),
+    ("paper.sh", {"SEEDS": "8"}, (), "outputs/results/paper_g200000_s8"),
+    ("paper.sh", {}, ("mutation.sigma=0.05",), "outputs/results/paper_g200000_s16,mutation.sigma=0.05"),
+    ("selectors.sh", {}, (), "results/selectors"),
+    ("selectors.sh", {"GENERATIONS": "200000"}, (), "outputs/results/selectors_g200000_s16"),
+])
+def test_where_the_results_go(clone, script, env, overrides, expected):
+    # PYTHON=false stops the launcher at its first command, after it has announced where the results go
+    proc = launch(clone, script, *overrides, PYTHON="false", **env)
+    assert f"results into {expected}\n" in proc.stderr, proc.stderr
