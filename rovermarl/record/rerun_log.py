@@ -1,14 +1,25 @@
-"""One Rerun recording (``.rrd``) per run, written by the driver from the run's arrays.
+"""One Rerun recording (``.rrd``) per run, written by the driver from the run's arrays, with its own layout.
 
-Entities (2-D scene units are world units):
+Entities (2-D positions are world units, exactly as simulated; the static ``world`` transform flips y, so the 2-D
+view shows y pointing up, as in the matplotlib figures; Rerun's 2-D views otherwise point y down):
 
-- static ``world/pois`` (POI centres, coloured by coupling), ``world/poi_radius`` (circles of the observation
-  radius), ``world/start_boxes`` (the rovers' start squares);
-- timeline ``generation``: ``metrics/score``, ``metrics/child_score``, ``metrics/k``, ``metrics/accepted``,
-  ``bandit/k<arm>`` (bandit selectors), ``occupancy/count`` (tensor episode x POI) and ``occupancy/poi_<j>``
-  (mean rovers at POI j over episodes) at each change, ``episodes/<e>/trajectories`` (one line per rover) at
+- static ``world`` (the y flip), ``world/pois`` (POI centres, coloured by coupling), ``world/poi_labels`` (one
+  label per POI, just outside its ring), ``world/poi_radius`` (circles of the observation radius, same colours),
+  ``world/start_boxes`` (the rovers' start squares, rover colours);
+- timeline ``generation``: ``metrics/score``; every declared per-generation series at ``Series.path``
+  (``metrics/<name>``; a vector series, e.g. a bandit's probabilities, one entry per column under
+  ``<entity>/<column>``), generations whose value is the series' non-zero ``fill`` (-1, nan: not computed) left out;
+  ``occupancy/poi_<j>``: lane ``j`` of the occupancy chart, whose colour is the mean number of rovers at POI ``j``
+  at the end of an episode (the value is ``j``, the lane; logged at each change and at the last generation);
+  ``occupancy/count`` (tensor episode x POI, colour range 0..N) at each change;
+  ``world/episodes/<e>/trajectories`` (one line per rover) and ``world/episodes/<e>/ends`` (final positions) at
   generation 0, every accepted score change and the last generation;
-- timeline ``step``: ``episodes/<e>/rovers``, the final team's positions along each episode.
+- timeline ``step``: ``world/episodes/<e>/rovers``, the final team's positions along each episode;
+- static ``legend``: a short text on what the colours and views mean.
+
+The recording carries a blueprint (:func:`blueprint`), made active and default, so every run opens on the same
+layout: the world (tabs: episode 0, all episodes, occupancy per episode, legend) beside the score and child
+scores, k and the other series, the bandit's probabilities (if any) and the occupancy chart.
 """
 
 from __future__ import annotations
@@ -18,33 +29,36 @@ from pathlib import Path
 
 import numpy as np
 
-ROVER_COLORS = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189],
-                         [140, 86, 75], [227, 119, 194], [127, 127, 127], [188, 189, 34], [23, 190, 207]],
-                        dtype=np.uint8)
-COUPLING_COLORS = np.array([[90, 90, 90], [230, 160, 0], [200, 40, 40], [120, 0, 160]], dtype=np.uint8)
+from rovermarl import palette
 
 
-def rover_colors(n: int) -> np.ndarray:
-    return ROVER_COLORS[np.arange(n) % len(ROVER_COLORS)]
-
-
-def write_rrd(path: Path, result: dict, world, every: int = 1, steps: bool = True, recording_id: str = "",
-              arms=None) -> Path:
+def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps: bool = True,
+              recording_id: str = "") -> Path:
     """Write ``result`` (a finished run's arrays) to ``path`` atomically; returns the path.
 
-    ``arms`` are the k values of a bandit's probabilities (default 1..K).
+    ``result`` holds ``score`` (G+1,), one array (G, *shape) per declared ``series`` (the algorithm's
+    :class:`~rovermarl.algorithms.base.Series`; generation g's entry is index g - 1), the behaviour and occupancy
+    events (``behaviour_generation``, ``behaviour_xy`` (C, E, T+1, N, 2), ``occupancy_generation``,
+    ``occupancy_count`` (M, E, P)). ``every`` thins the per-generation series (the last generation is always
+    kept); ``steps`` adds the final team's episodes on the ``step`` timeline.
     """
     import rerun as rr
 
     path = Path(path)
+    series = tuple(s for s in series if s.name in result)
+    last = len(result["score"]) - 1
     tmp = path.with_name(f".{path.name}.tmp")
     rec = rr.RecordingStream("rovermarl", recording_id=recording_id or path.parent.name)
     rec.save(str(tmp))
     try:
+        vmax = occupancy_vmax(result)
+        rec.send_blueprint(blueprint(world, series, last, _ranges(result, series), vmax), make_active=True,
+                           make_default=True)
         _scene(rec, rr, world)
-        _metrics(rec, rr, result, every, arms)
-        _occupancy(rec, rr, result)
+        _occupancy(rec, rr, result, world, last, vmax)
+        _metrics(rec, rr, result, series, every)
         _trajectories(rec, rr, result, steps)
+        rec.log("legend", rr.TextDocument(legend(world, series, vmax), media_type="text/markdown"), static=True)
         rec.flush()
     finally:
         rec.disconnect()
@@ -52,47 +66,203 @@ def write_rrd(path: Path, result: dict, world, every: int = 1, steps: bool = Tru
     return path
 
 
+# ---- layout ----------------------------------------------------------------------------------------------------
+
+def world_bounds(world) -> float:
+    """Half-width of the 2-D view: the POI circle, its observation discs and room for the labels outside them."""
+    return float(world.poi_distance + world.obs_radius + 4.0)
+
+
+def poi_labels(world) -> list[str]:
+    """``POI j``, with the coupling when the POIs do not all need one rover."""
+    mixed = any(c != 1 for c in world.coupling)
+    return [f"POI {j} (c={c})" if mixed else f"POI {j}" for j, c in enumerate(world.coupling)]
+
+
+def _in_score_view(s) -> bool:
+    return s.shape == () and s.name.endswith("score")
+
+
+def blueprint(world, series=(), last: int = 0, ranges=None, vmax: float = 1.0):
+    """The layout of a run's recording (see the module doc): ``last`` is the run's last generation, ``ranges``
+    maps entity paths to fixed y ranges, ``vmax`` is the top of the occupancy colour scale."""
+    import rerun.blueprint as rrb
+
+    ranges = ranges or {}
+    b = world_bounds(world)
+    bounds = rrb.VisualBounds2D(x_range=[-b, b], y_range=[-b, b])
+    scene = ["/world/pois", "/world/poi_labels", "/world/poi_radius", "/world/start_boxes"]
+    span = rrb.TimeAxis(view_range=rrb.TimeRange(start=rrb.TimeRangeBoundary.absolute(0),
+                                                 end=rrb.TimeRangeBoundary.absolute(max(last, 1))))
+    left = rrb.Tabs(
+        rrb.Spatial2DView(name="episode 0", origin="/", contents=[*scene, "/world/episodes/0/**"],
+                          visual_bounds=bounds),
+        rrb.Spatial2DView(name="all episodes", origin="/", contents="/world/**", visual_bounds=bounds),
+        rrb.TensorView(name="occupancy per episode", origin="/occupancy/count",
+                       scalar_mapping=rrb.TensorScalarMapping(colormap="Viridis"), view_fit="Fill"),
+        rrb.TextDocumentView(name="legend", origin="/legend"),
+        active_tab=0,
+    )
+    score = rrb.TimeSeriesView(name="score (line) and child scores (dots)", origin="/metrics",
+                               contents=["/metrics/score", *(f"/{s.path}" for s in series if _in_score_view(s))],
+                               axis_x=span, plot_legend=rrb.PlotLegend(corner="RightBottom"))
+    scalars = [rrb.TimeSeriesView(name=_title(s), origin=f"/{s.path}", axis_x=span,
+                                  axis_y=rrb.ScalarAxis(range=ranges[s.path]) if s.path in ranges else None,
+                                  plot_legend=rrb.PlotLegend(visible=False))
+               for s in series if s.shape == () and not _in_score_view(s)]
+    vectors = [rrb.TimeSeriesView(name=_title(s), origin=f"/{s.path}", axis_x=span,
+                                  plot_legend=rrb.PlotLegend(corner="RightTop"))
+               for s in series if s.shape != ()]
+    middle = [rrb.Tabs(*scalars, active_tab=0)] if scalars else []
+    occupancy = rrb.TimeSeriesView(name=f"POI occupancy, lane j = POI j: mean rovers there at episode end, "
+                                        f"dark 0 to yellow {vmax:.3g}",
+                                   origin="/occupancy", contents=["/occupancy/**", "- /occupancy/count"], axis_x=span,
+                                   axis_y=rrb.ScalarAxis(range=(-0.6, world.n_pois - 0.4), zoom_lock=True),
+                                   plot_legend=rrb.PlotLegend(visible=False))
+    right = rrb.Vertical(score, rrb.Horizontal(*middle, *vectors), occupancy, row_shares=[3, 2, 3]) \
+        if middle or vectors else rrb.Vertical(score, occupancy, row_shares=[1, 1])
+    return rrb.Blueprint(
+        rrb.Horizontal(left, right, column_shares=[5, 6]),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(state="collapsed", timeline="generation"),
+        auto_views=False,
+    )
+
+
+def _title(s) -> str:
+    doc = s.doc.split("(")[0].strip()
+    if doc and len(doc) <= 24:
+        return f"{s.name}: {doc}"
+    return s.name if s.path == f"metrics/{s.name}" else f"{s.name} ({s.path})"
+
+
+def legend(world, series=(), vmax: float = 1.0) -> str:
+    """The markdown of the ``legend`` tab."""
+    rovers = ", ".join(f"rover {i} {palette.rover_hex(i)}" for i in range(world.n_rovers))
+    pois = ", ".join(f"coupling {c}: {palette.poi_hex(c)}" for c in sorted(set(world.coupling)))
+    lines = [
+        "## rovermarl run",
+        f"- **World** (y up, world units): {world.n_pois} POIs on a circle of radius {world.poi_distance:g}; "
+        f"rings: observation radius {world.obs_radius:g}. POI colours by coupling: {pois}.",
+        f"- **Rovers**: {rovers} (matplotlib's C0, C1, ...); small squares: start boxes. Lines: the trajectories "
+        "of the team at the time cursor (generation 0, every accepted score change, the last generation); dots: "
+        "where each rover ends.",
+        "- **One episode or all**: the tabs *episode 0* and *all episodes*. For another episode, "
+        "open the blueprint panel, select the view and add `/world/episodes/<e>/**` to its entity query.",
+        "- **Final team, step by step**: choose the `step` timeline in the time panel and press play.",
+        f"- **POI occupancy**: lane j is POI j; its colour is the mean number of rovers within the observation "
+        f"radius at the end of an episode (over the {world.episodes} episodes): viridis, dark 0 to yellow "
+        f"{vmax:.3g} or more. Tab *occupancy per episode*: the counts at the time cursor.",
+        "- **Score**: team score F after each generation (line) and the score of each evaluated child (dots).",
+    ]
+    lines += [f"- **{s.name}** (`{s.path}`): {s.doc}" for s in series if s.doc]
+    return "\n".join(lines) + "\n"
+
+
+# ---- data ------------------------------------------------------------------------------------------------------
+
 def _scene(rec, rr, world) -> None:
     coupling = np.array(world.coupling)
-    colors = COUPLING_COLORS[np.minimum(coupling - 1, len(COUPLING_COLORS) - 1)]
-    rec.log("world/pois", rr.Points2D(world.poi_xy, radii=0.3, colors=colors,
-                                      labels=[f"POI {j} (c={c})" for j, c in enumerate(coupling)]), static=True)
+    colors = palette.poi_rgb(coupling)
+    rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)      # y up on screen
+    rec.log("world/pois", rr.Points2D(world.poi_xy, radii=0.35, colors=colors, draw_order=40.0), static=True)
+    out = world.poi_xy * (1 + (world.obs_radius + 0.9) / max(world.poi_distance, 1e-9))
+    rec.log("world/poi_labels", rr.Points2D(out, radii=0.0, colors=colors, labels=poi_labels(world),
+                                            show_labels=True), static=True)   # outside the rings
     theta = np.linspace(0, 2 * np.pi, 65)
     ring = world.obs_radius * np.stack([np.cos(theta), np.sin(theta)], axis=1)
-    rec.log("world/poi_radius", rr.LineStrips2D([p + ring for p in world.poi_xy], colors=colors), static=True)
-    rec.log("world/start_boxes", rr.LineStrips2D(world.start_squares, colors=rover_colors(world.n_rovers)),
-            static=True)
+    rec.log("world/poi_radius", rr.LineStrips2D([p + ring for p in world.poi_xy], colors=colors, radii=-1.5,
+                                                draw_order=10.0), static=True)
+    rec.log("world/start_boxes", rr.LineStrips2D(world.start_squares, colors=palette.rover_rgb(world.n_rovers),
+                                                 radii=-1.0, draw_order=20.0), static=True)
 
 
-def _series(rec, rr, entity, generations, values) -> None:
-    rec.send_columns(entity, indexes=[rr.TimeColumn("generation", sequence=np.asarray(generations, dtype=np.int64))],
-                     columns=rr.Scalars.columns(scalars=np.asarray(values, dtype=np.float64)))
+def _columns(rr, generations) -> list:
+    return [rr.TimeColumn("generation", sequence=np.asarray(generations, dtype=np.int64))]
 
 
-def _metrics(rec, rr, result, every, arms) -> None:
-    score = result["score"]
-    gens = np.arange(len(score))[::every]
-    _series(rec, rr, "metrics/score", gens, score[::every])
-    if "k" not in result:
-        return
-    after = gens[gens >= 1]                                       # generation g's child: index g - 1
-    _series(rec, rr, "metrics/child_score", after, result["child_score"][after - 1])
-    _series(rec, rr, "metrics/k", after, result["k"][after - 1])
-    _series(rec, rr, "metrics/accepted", after, result["accepted"][after - 1])
-    if "probs" in result:
-        for a, arm in enumerate(arms or range(1, result["probs"].shape[1] + 1)):
-            _series(rec, rr, f"bandit/k{arm}", after, result["probs"][after - 1, a])
+def _kept(s, values: np.ndarray) -> np.ndarray:
+    """Rows whose value is not the series' not-computed marker (a non-zero ``fill``: -1, nan)."""
+    fill = float(s.fill)
+    if np.isnan(fill):
+        return ~np.isnan(values)
+    if fill != 0:
+        return values != fill
+    return np.ones(len(values), dtype=bool)
 
 
-def _occupancy(rec, rr, result) -> None:
-    gens, count = result["occupancy_generation"], result["occupancy_count"]
+def _metrics(rec, rr, result, series, every) -> None:
+    score = np.asarray(result["score"], dtype=np.float64)
+    last = len(score) - 1
+    gens = np.unique(np.r_[np.arange(0, last + 1, every), last])
+    rec.log("metrics/score", rr.SeriesLines(names="score", colors=palette.rgb(palette.SCORE), widths=2.0,
+                                            interpolation_mode="StepAfter"), static=True)
+    rec.send_columns("metrics/score", indexes=_columns(rr, gens), columns=rr.Scalars.columns(scalars=score[gens]))
+    after = gens[gens >= 1]                                              # generation g's entry: index g - 1
+    for s in series:
+        values = np.asarray(result[s.name])[after - 1]
+        if s.shape == ():
+            _one_series(rec, rr, s, s.path, s.name, after, values, palette.series_hex(s.name))
+        else:
+            for c, column in enumerate(s.columns or [str(c) for c in range(s.shape[0])]):
+                _one_series(rec, rr, s, f"{s.path}/{column}", column, after, values[:, c], palette.rover_hex(c))
+
+
+def _one_series(rec, rr, s, entity, name, gens, values, colour) -> None:
+    keep = _kept(s, values.astype(np.float64))
+    if np.dtype(s.dtype).kind == "f":                    # one sample per generation: dots
+        style = rr.SeriesPoints(names=name, colors=palette.rgb(colour), marker_sizes=1.5)
+    else:                                                 # counts and flags hold until the next generation
+        style = rr.SeriesLines(names=name, colors=palette.rgb(colour), widths=1.5, interpolation_mode="StepAfter",
+                               aggregation_policy="Average")         # zoomed out: the mean over each pixel
+    rec.log(entity, style, static=True)
+    if keep.any():
+        rec.send_columns(entity, indexes=_columns(rr, gens[keep]),
+                         columns=rr.Scalars.columns(scalars=values[keep].astype(np.float64)))
+
+
+def occupancy_vmax(result) -> float:
+    """Top of the occupancy colour scale: the largest mean number of rovers at a POI, at least 1 (as the figure)."""
+    count = np.asarray(result["occupancy_count"])
+    return float(max(1.0, count.mean(axis=1).max())) if count.size else 1.0
+
+
+def _ranges(result, series) -> dict:
+    """Fixed y ranges of the integer and flag series: their values +- 0.5 (bools: -0.1..1.1)."""
+    out = {}
+    for s in series:
+        kind = np.dtype(s.dtype).kind
+        if s.shape == () and kind in "biu":
+            v = np.asarray(result[s.name]).astype(np.float64)
+            v = v[_kept(s, v)]
+            if kind == "b":
+                out[s.path] = (-0.1, 1.1)
+            elif v.size:
+                out[s.path] = (float(v.min()) - 0.5, float(v.max()) + 0.5)
+    return out
+
+
+def _occupancy(rec, rr, result, world, last, vmax) -> None:
+    """Log the occupancy lanes (colours on the scale 0..``vmax``) and the per-episode count tensors."""
+    gens, count = np.asarray(result["occupancy_generation"]), np.asarray(result["occupancy_count"])
+    coupling = np.array(world.coupling)
     if len(gens) == 0:
         return
-    for j in range(count.shape[2]):
-        _series(rec, rr, f"occupancy/poi_{j}", gens, count[:, :, j].mean(axis=1))
-    for g, c in zip(gens, count, strict=True):
+    mean = count.mean(axis=1)                                            # (M, P) mean rovers per POI
+    hold = gens
+    if gens[-1] < last:                                                  # the last value holds until the end
+        hold, mean = np.r_[gens, last], np.vstack([mean, mean[-1:]])
+    width = float(np.clip(150.0 / world.n_pois, 4.0, 16.0))
+    for j, c in enumerate(coupling):
+        rec.log(f"occupancy/poi_{j}", rr.SeriesLines(names=f"POI {j} (c={c})", widths=width,
+                                                     interpolation_mode="StepAfter"), static=True)
+        rec.send_columns(f"occupancy/poi_{j}", indexes=_columns(rr, hold),
+                         columns=[*rr.Scalars.columns(scalars=np.full(len(hold), float(j))),
+                                  *rr.SeriesLines.columns(colors=palette.occupancy_rgb(mean[:, j], vmax))])
+    for g, c in zip(gens, count, strict=True):                           # colour range 0..N, not the int8 range
         rec.set_time("generation", sequence=int(g))
-        rec.log("occupancy/count", rr.Tensor(c, dim_names=["episode", "poi"]))
+        rec.log("occupancy/count", rr.Tensor(c, dim_names=["episode", "poi"], value_range=(0, world.n_rovers)))
     rec.reset_time()
 
 
@@ -101,16 +271,19 @@ def _trajectories(rec, rr, result, steps) -> None:
     if len(gens) == 0:
         return
     c, n_ep, t1, n = xy.shape[:4]
-    colors = np.tile(rover_colors(n), (c, 1))
-    generation = rr.TimeColumn("generation", sequence=np.asarray(gens, dtype=np.int64))
+    colors = np.tile(palette.rover_rgb(n), (c, 1))
+    generation = _columns(rr, gens)
     for e in range(n_ep):                                                  # C rows of N lines each
         strips = xy[:, e].transpose(0, 2, 1, 3).reshape(c * n, t1, 2)
-        rec.send_columns(f"episodes/{e}/trajectories", indexes=[generation],
+        rec.send_columns(f"world/episodes/{e}/trajectories", indexes=generation,
                          columns=rr.LineStrips2D.columns(strips=strips, colors=colors).partition([n] * c))
+        rec.send_columns(f"world/episodes/{e}/ends", indexes=generation,
+                         columns=rr.Points2D.columns(positions=xy[:, e, -1].reshape(c * n, 2), colors=colors,
+                                                     radii=np.full(c * n, 0.3)).partition([n] * c))
     if steps:                                                              # T+1 rows of N points each
         step = rr.TimeColumn("step", sequence=np.arange(t1))
-        step_colors = np.tile(rover_colors(n), (t1, 1))
+        step_colors = np.tile(palette.rover_rgb(n), (t1, 1))
         for e in range(n_ep):
-            rec.send_columns(f"episodes/{e}/rovers", indexes=[step],
+            rec.send_columns(f"world/episodes/{e}/rovers", indexes=[step],
                              columns=rr.Points2D.columns(positions=xy[-1, e].reshape(t1 * n, 2), colors=step_colors,
-                                                         radii=np.full(t1 * n, 0.25)).partition([n] * t1))
+                                                         radii=np.full(t1 * n, 0.3)).partition([n] * t1))
