@@ -1,20 +1,28 @@
 """Replay a run in the Rerun viewer: ``python -m rovermarl.replay PATH [--seed S] [--resim [--ic-seed N]]``.
 
 PATH is a run dir (``runs/seed_XXX``), a job dir (pick the run with ``--seed``; default: the first one) or an
-``.rrd`` file. The viewer opens when one can start here (a ``rerun`` executable and a display); otherwise the
-exact ``rerun`` command is printed. ``--resim`` re-simulates the run's final genomes on its own initial
-conditions, or on fresh ones drawn from ``--ic-seed``, and records a new ``.rrd`` to replay.
+``.rrd`` file. Where there is a display, the native viewer opens. Without one (a server reached by ssh), or with
+``--web``, the web viewer is served here on 127.0.0.1 until Ctrl-C, and the URL and the ``ssh -L`` port-forward
+to use are printed. ``--no-viewer`` prints both ways instead. ``--resim`` re-simulates the run's final genomes on
+its own initial conditions, or on fresh ones drawn from ``--ic-seed``, and records a new ``.rrd`` to replay.
 """
 
 from __future__ import annotations
 
 import argparse
+import getpass
 import os
 import shlex
 import shutil
+import signal
+import socket
 import subprocess
 import sys
+import tempfile
+import time
+import warnings
 from pathlib import Path
+from urllib.parse import quote
 
 import numpy as np
 import yaml
@@ -51,7 +59,7 @@ def find_run(path: Path, seed: int | None) -> Path:
 def resimulate(run: Path, ic_seed: int | None, out: Path | None) -> Path:
     """Record the final team of ``run`` on its initial conditions (or fresh ones from ``ic_seed``) to an .rrd."""
     from rovermarl.env import World
-    from rovermarl.record.events import Recorder
+    from rovermarl.record.events import occupancy
     from rovermarl.record.rerun_log import write_rrd
 
     job = run.parent.parent
@@ -66,7 +74,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None) -> Path:
     else:
         ic = world.initial_conditions(ic_seed)
     roll = world.rollout(genomes, ic)
-    count = Recorder(world, ic, {}).occupancy(roll.xy[:, -1])
+    count = occupancy(world, roll.xy[:, -1])
     score = float(roll.returns.mean())
     result = {"seed": 0, "score": np.array([score]), "behaviour_generation": np.zeros(1, dtype=np.int64),
               "behaviour_score": np.array([score]), "behaviour_xy": roll.xy[None].astype(np.float32),
@@ -78,18 +86,122 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None) -> Path:
     return out
 
 
-def open_viewer(rrd: Path, viewer: bool = True) -> None:
-    """Start the Rerun viewer on ``rrd`` if possible, else print the command that would."""
-    exe = shutil.which("rerun") or (str(Path(sys.executable).with_name("rerun"))
-                                    if Path(sys.executable).with_name("rerun").exists() else None)
-    display = sys.platform in ("darwin", "win32") or os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")
-    command = f"{shlex.quote(exe or 'rerun')} {shlex.quote(str(rrd.resolve()))}"
-    if viewer and exe and display:
+def rerun_exe() -> str | None:
+    """The ``rerun`` executable: on PATH, or beside this Python (a venv not activated)."""
+    beside = Path(sys.executable).with_name("rerun")
+    return shutil.which("rerun") or (str(beside) if beside.exists() else None)
+
+
+def has_display() -> bool:
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def check_rrd(rrd: Path) -> None:
+    """Raise :class:`ReplayError` if ``rrd`` is not a readable Rerun recording (e.g. truncated by a copy)."""
+    from rerun.chunk import RrdReader
+
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")                  # "no footer": still readable (older files)
+            if not RrdReader(str(rrd)).recordings():
+                raise ReplayError(f"{rrd}: holds no recording")
+    except RuntimeError as e:
+        raise ReplayError(f"{rrd}: not a readable Rerun recording (truncated or corrupt?): "
+                          f"{str(e).splitlines()[0]}") from None
+
+
+def port_free(port: int, host: str = "127.0.0.1") -> bool:
+    with socket.socket() as s:
+        try:
+            s.bind((host, port))
+        except OSError:
+            return False
+        return True
+
+
+def free_port(default: int, avoid: tuple[int, ...] = ()) -> int:
+    """``default`` if it can be bound here, else a free port chosen by the system."""
+    if port_free(default) and default not in avoid:
+        return default
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def web_commands(rrd: Path, exe: str, web_port: int, grpc_port: int, bind: str = "127.0.0.1") -> dict:
+    """The ``rerun --web-viewer`` command serving ``rrd``, the URL to open and the ssh port-forward to use."""
+    serve = [exe, "--web-viewer", "--bind", bind, "--web-viewer-port", str(web_port), "--port", str(grpc_port),
+             str(rrd.resolve())]
+    url = f"http://localhost:{web_port}/?url=" + quote(f"rerun+http://localhost:{grpc_port}/proxy", safe="")
+    name = socket.gethostname()
+    host = f"{getpass.getuser()}@{name if name and not name.startswith('localhost') else 'THIS_HOST'}"
+    return {"serve": serve, "url": url,
+            "ssh": f"ssh -N -L {web_port}:localhost:{web_port} -L {grpc_port}:localhost:{grpc_port} {host}"}
+
+
+def serve_web(rrd: Path, exe: str, web_port: int, grpc_port: int, bind: str = "127.0.0.1",
+              timeout: float = 30.0, why: str = "") -> None:
+    """Serve ``rrd`` in the web viewer until Ctrl-C (or SIGTERM); print the URL and the ssh forward first."""
+    cmd = web_commands(rrd, exe, web_port, grpc_port, bind)
+
+    def stop(signum, frame):                                 # SIGTERM, or the ssh session closing: clean up
+        raise KeyboardInterrupt
+
+    before = {sig: signal.signal(sig, stop) for sig in (signal.SIGTERM, signal.SIGHUP)}
+    with tempfile.TemporaryFile("w+") as log:
+        proc = subprocess.Popen(cmd["serve"], stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            deadline = time.monotonic() + timeout
+            while True:                                      # up when both ports are taken
+                if proc.poll() is not None:
+                    log.seek(0)
+                    last = ([ln.strip() for ln in log if ln.strip()] or ["no output"])[-1]
+                    raise ReplayError(f"rerun --web-viewer stopped at once (exit {proc.returncode}): {last}")
+                if not port_free(web_port) and not port_free(grpc_port):
+                    break
+                if time.monotonic() > deadline:
+                    raise ReplayError(f"rerun --web-viewer did not open port {web_port} within {timeout:g} s")
+                time.sleep(0.1)
+            print(f"{why}serving {rrd} in the Rerun web viewer (Ctrl-C stops it)\n"
+                  f"  1. on your machine, forward the two ports: {cmd['ssh']}\n"
+                  f"     (your user and this machine's name as you reach it by ssh)\n"
+                  f"  2. open {cmd['url']}", flush=True)
+            proc.wait()
+        except KeyboardInterrupt:
+            print("stopped the web viewer")
+        finally:
+            if proc.poll() is None:
+                os.killpg(proc.pid, signal.SIGTERM)
+                try:
+                    proc.wait(10)
+                except subprocess.TimeoutExpired:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                    proc.wait()
+            for sig, handler in before.items():
+                signal.signal(sig, handler)
+
+
+def open_viewer(rrd: Path, viewer: bool = True, web: bool = False, web_port: int = 9090, grpc_port: int = 9876,
+                bind: str = "127.0.0.1") -> None:
+    """Open ``rrd``: the native viewer where there is a display; else (or with ``web``) serve the web viewer and
+    say how to reach it; with ``viewer=False`` print both ways instead of starting either."""
+    exe = rerun_exe()
+    native = f"{shlex.quote(exe or 'rerun')} {shlex.quote(str(rrd.resolve()))}"
+    if viewer and exe and has_display() and not web:
         subprocess.Popen([exe, str(rrd)], start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        print(f"opened the Rerun viewer: {command}")
-    else:
-        why = "no display" if exe else "no rerun executable on PATH"
-        print(f"cannot start the viewer here ({why}); run:\n{command}")
+        print(f"opened the Rerun viewer: {native}")
+        return
+    if viewer and exe:
+        web_port = free_port(web_port)
+        serve_web(rrd, exe, web_port, free_port(grpc_port, avoid=(web_port,)), bind,
+                  why="" if web else "no display here (DISPLAY and WAYLAND_DISPLAY unset): ")
+        return
+    cmd = web_commands(rrd, exe or "rerun", web_port, grpc_port, bind)
+    why = "" if exe else " (no rerun executable here: pip install rerun-sdk)"
+    print(f"native viewer (needs a display){why}:\n  {native}\n"
+          f"web viewer (a server without a display):\n  {shlex.join(cmd['serve'])}\n"
+          f"  then, on your machine: {cmd['ssh']}\n"
+          f"  and open {cmd['url']}")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -104,7 +216,12 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--resim", action="store_true", help="re-simulate the final genomes and record a new .rrd")
     p.add_argument("--ic-seed", type=int, help="with --resim: draw fresh initial conditions from this seed")
     p.add_argument("--out", type=Path, help="with --resim: where to write the .rrd")
-    p.add_argument("--no-viewer", action="store_true", help="print the rerun command instead of starting it")
+    p.add_argument("--no-viewer", action="store_true", help="print the viewer commands instead of starting one")
+    p.add_argument("--web", action="store_true", help="serve the web viewer even where there is a display")
+    p.add_argument("--web-port", type=int, default=9090, help="web viewer's HTTP port (default 9090, or a free one)")
+    p.add_argument("--grpc-port", type=int, default=9876, help="web viewer's data port (default 9876, or a free one)")
+    p.add_argument("--bind", default="127.0.0.1",
+                   help="address the web viewer listens on (default 127.0.0.1: reach it through ssh -L)")
     a = p.parse_args(argv)
     try:
         if (a.ic_seed is not None or a.out is not None) and not a.resim:
@@ -118,7 +235,8 @@ def main(argv: list[str] | None = None) -> None:
             rrd = target if target.suffix == ".rrd" else target / "run.rrd"
             if not rrd.exists():
                 raise ReplayError(f"{target}: has no run.rrd (recorded with record.rerun=false?); try --resim")
-        open_viewer(rrd, viewer=not a.no_viewer)
+        check_rrd(rrd)
+        open_viewer(rrd, viewer=not a.no_viewer, web=a.web, web_port=a.web_port, grpc_port=a.grpc_port, bind=a.bind)
     except (ReplayError, OSError, ValueError, KeyError, yaml.YAMLError, OmegaConfBaseException) as e:
         what = "" if isinstance(e, (ReplayError, OSError)) else f"{a.path}: unreadable run or job files: "
         print(f"rovermarl.replay: error: {what}{' '.join(str(e).split())}", file=sys.stderr)

@@ -17,11 +17,14 @@ from tests.conftest import make_cfg, run_cli
 
 
 def _entities(path):
-    """entity path -> (rows, static?, first record batch) of an .rrd."""
+    """entity path -> (rows on a timeline, static only?, first record batch: a timeline's if any) of an .rrd."""
     out = {}
     for chunk in RrdReader(str(path)).stream():
-        rows, static, batch = out.get(chunk.entity_path, (0, chunk.is_static, None))
-        out[chunk.entity_path] = (rows + chunk.num_rows, static, batch or chunk.to_record_batch())
+        rows, static, batch = out.get(chunk.entity_path, (0, True, None))
+        if chunk.is_static:
+            out[chunk.entity_path] = (rows, static, batch or chunk.to_record_batch())
+        else:                                                  # beside a static style (e.g. SeriesLines)
+            out[chunk.entity_path] = (rows + chunk.num_rows, False, chunk.to_record_batch() if static else batch)
     return out
 
 
@@ -64,17 +67,19 @@ def test_tiny_sweep_leaves_one_rrd_per_run_with_the_right_entities(tmp_path):
         ent = _entities(rrds[0])
         with np.load(run / "behaviour.npz") as b, np.load(run / "occupancy.npz") as o:
             n_changes, n_occ = len(b["generation"]), len(o["generation"])
+            held = n_occ + (o["generation"][-1] < 300)                      # the last value holds to the end
             assert b["xy"].shape == (n_changes, 16, 16, 4, 2) and o["count"].shape == (n_occ, 16, 10)
         rows, static, batch = ent["/world/pois"]
         assert static and len(batch.column("Points2D:positions")[0]) == 10
         assert ent["/world/poi_radius"][1] and ent["/world/start_boxes"][1]
         assert ent["/metrics/score"][0] == 301 and ent["/metrics/k"][0] == 300
         assert ent["/occupancy/count"][0] == n_occ
-        assert all(ent[f"/occupancy/poi_{j}"][0] == n_occ for j in range(10))
+        assert all(ent[f"/occupancy/poi_{j}"][0] == held for j in range(10))
         for e in range(16):
-            assert ent[f"/episodes/{e}/trajectories"][0] == n_changes
-            assert ent[f"/episodes/{e}/rovers"][0] == 16                     # T + 1 steps
-        traj = ent["/episodes/0/trajectories"][2]
+            assert ent[f"/world/episodes/{e}/trajectories"][0] == n_changes
+            assert ent[f"/world/episodes/{e}/rovers"][0] == 16               # T + 1 steps
+        assert len(RrdReader(str(rrds[0])).blueprints()) == 1                 # the layout (see test_replay.py)
+        traj = ent["/world/episodes/0/trajectories"][2]
         assert len(traj.column("LineStrips2D:strips")[0]) == 4                # one line per rover
         assert ("/bandit/k1" in ent) == bandit
         if bandit:
@@ -98,13 +103,15 @@ def test_record_off_writes_no_rrd_and_no_events(tmp_path):
 def test_replay_prints_the_command_and_resimulates(tmp_path):
     run_job(make_cfg("generations=30", "seeds=2", "parallel=serial"), tmp_path)
     proc = run_cli(str(tmp_path), "--seed", "1", "--no-viewer", module="rovermarl.replay")
-    assert proc.returncode == 0 and proc.stdout.strip().endswith("runs/seed_001/run.rrd"), proc.stderr
+    assert proc.returncode == 0 and "runs/seed_001/run.rrd\n" in proc.stdout, proc.stderr
+    assert "ssh -N -L 9090:localhost:9090 -L 9876:localhost:9876 " in proc.stdout and "open http://localhost:9090/" \
+        in proc.stdout
     out = tmp_path / "fresh.rrd"
     proc = run_cli(str(tmp_path / "runs" / "seed_000"), "--resim", "--ic-seed", "9", "--out", str(out),
                    "--no-viewer", module="rovermarl.replay")
     assert proc.returncode == 0, proc.stderr
     ent = _entities(out)
-    assert ent["/episodes/3/trajectories"][0] == 1 and ent["/episodes/3/rovers"][0] == 16
+    assert ent["/world/episodes/3/trajectories"][0] == 1 and ent["/world/episodes/3/rovers"][0] == 16
 
 
 @pytest.mark.parametrize("args", [["/no/such/path"], ["{empty}"], ["{tmp}", "--seed", "7"], ["{tmp}/x.txt"],
