@@ -136,7 +136,7 @@ def web_commands(rrd: Path, exe: str, web_port: int, grpc_port: int, bind: str =
     name = socket.gethostname()
     host = f"{getpass.getuser()}@{name if name and not name.startswith('localhost') else 'THIS_HOST'}"
     return {"serve": serve, "url": url,
-            "ssh": f"ssh -N -L {web_port}:localhost:{web_port} -L {grpc_port}:localhost:{grpc_port} {host}"}
+            "ssh": f"ssh -N -L {web_port}:127.0.0.1:{web_port} -L {grpc_port}:127.0.0.1:{grpc_port} {host}"}
 
 
 def serve_web(rrd: Path, exe: str, web_port: int, grpc_port: int, bind: str = "127.0.0.1",

@@ -104,7 +104,7 @@ def test_replay_prints_the_command_and_resimulates(tmp_path):
     run_job(make_cfg("generations=30", "seeds=2", "parallel=serial"), tmp_path)
     proc = run_cli(str(tmp_path), "--seed", "1", "--no-viewer", module="rovermarl.replay")
     assert proc.returncode == 0 and "runs/seed_001/run.rrd\n" in proc.stdout, proc.stderr
-    assert "ssh -N -L 9090:localhost:9090 -L 9876:localhost:9876 " in proc.stdout and "open http://localhost:9090/" \
+    assert "ssh -N -L 9090:127.0.0.1:9090 -L 9876:127.0.0.1:9876 " in proc.stdout and "open http://localhost:9090/" \
         in proc.stdout
     out = tmp_path / "fresh.rrd"
     proc = run_cli(str(tmp_path / "runs" / "seed_000"), "--resim", "--ic-seed", "9", "--out", str(out),

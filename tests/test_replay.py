@@ -240,7 +240,7 @@ def test_no_viewer_prints_the_native_and_the_web_commands(recorded, capsys):
     out = capsys.readouterr().out
     assert f"rerun {path.resolve()}" in out
     assert f"--web-viewer --bind 127.0.0.1 --web-viewer-port 9191 --port 9292 {path.resolve()}" in out
-    assert "ssh -N -L 9191:localhost:9191 -L 9292:localhost:9292 " in out
+    assert "ssh -N -L 9191:127.0.0.1:9191 -L 9292:127.0.0.1:9292 " in out
     assert "open http://localhost:9191/?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A9292%2Fproxy" in out
 
 
@@ -261,7 +261,7 @@ def test_without_a_display_replay_serves_the_web_viewer_and_stops_cleanly(record
             lines.append(line)
         text = "".join(lines)
         assert text.startswith("no display here"), text + proc.stderr.read() if proc.poll() is not None else text
-        assert f"ssh -N -L {web}:localhost:{web} -L {grpc}:localhost:{grpc} " in text
+        assert f"ssh -N -L {web}:127.0.0.1:{web} -L {grpc}:127.0.0.1:{grpc} " in text
         url = text.split("2. open ")[1].split()[0]
         assert url.startswith(f"http://localhost:{web}/?url=rerun%2Bhttp%3A%2F%2Flocalhost%3A{grpc}%2Fproxy")
         with urllib.request.urlopen(f"http://127.0.0.1:{web}/", timeout=10) as r:    # the web viewer is up

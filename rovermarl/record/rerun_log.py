@@ -111,7 +111,7 @@ def blueprint(world, series=(), last: int = 0, ranges=None, vmax: float = 1.0):
                                   plot_legend=rrb.PlotLegend(visible=False))
                for s in series if s.shape == () and not _in_score_view(s)]
     vectors = [rrb.TimeSeriesView(name=_title(s), origin=f"/{s.path}", axis_x=span,
-                                  plot_legend=rrb.PlotLegend(corner="RightTop"))
+                                  plot_legend=rrb.PlotLegend(corner="LeftTop"))
                for s in series if s.shape != ()]
     middle = [rrb.Tabs(*scalars, active_tab=0)] if scalars else []
     occupancy = rrb.TimeSeriesView(name=f"POI occupancy, lane j = POI j: mean rovers there at episode end, "
