@@ -1,19 +1,15 @@
-"""The fast kernel's own elementary functions against libm, and its rollouts against the plain numpy rollout."""
+"""The kernel's own elementary functions against libm, and its stages against the fused rollout (bit for bit)."""
 
-import importlib.util
+import doctest
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
+from kernel_helpers import atan2_array, tanh_array
 
 from rovermarl import make_world
 from rovermarl.env import kernel
-
-_SPEC = importlib.util.spec_from_file_location(
-    "numpy_rollout", Path(__file__).resolve().parents[1] / "benchmarks" / "numpy_rollout.py")
-numpy_rollout = importlib.util.module_from_spec(_SPEC)
-_SPEC.loader.exec_module(numpy_rollout)
+from rovermarl.env.kernel import rules, stages
 
 RNG = np.random.default_rng(12345)
 N = 100_000
@@ -54,7 +50,7 @@ def atan2_cases():
 def test_atan2_within_2_ulp_of_libm():
     y, x = atan2_cases()
     got = np.empty_like(y)
-    kernel.atan2_array(y, x, got)
+    atan2_array(y, x, got)
     want = libm(math.atan2, y, x)
     assert ulps(got, want).max() <= 2
     assert same_sign_zero(got, want)
@@ -67,7 +63,7 @@ def test_tanh_within_2_ulp_of_libm():
     x = np.concatenate([RNG.uniform(-1, 1, N), RNG.uniform(-25, 25, N), 0.625 + RNG.uniform(-1e-3, 1e-3, N // 4),
                         RNG.choice([-1, 1], N) * 10.0 ** RNG.uniform(-320, 3, N), EDGE, [19.06, 20.0, 40.0, -710.0]])
     got = np.empty_like(x)
-    kernel.tanh_array(x, got)
+    tanh_array(x, got)
     want = libm(math.tanh, x)
     assert ulps(got, want).max() <= 2
     assert same_sign_zero(got, want)
@@ -81,12 +77,12 @@ def test_sincos_within_2_ulp_of_libm():
     near = RNG.integers(-60, 60, N // 4) * (math.pi / 2) + RNG.normal(0, 1e-9, N // 4)   # near zeros of sin/cos
     for angles in (a, near):
         s, c = np.empty_like(angles), np.empty_like(angles)
-        kernel._sincos_all(angles, s, c)
+        kernel.sincos_all(angles, s, c)
         assert ulps(s, libm(math.sin, angles)).max() <= 2
         assert ulps(c, libm(math.cos, angles)).max() <= 2
     far = np.array([1e6, -3e7, 1e300, 123456.789])                          # beyond SINCOS_MAX: libm
     s, c = np.empty(4), np.empty(4)
-    kernel._sincos_all(far, s, c)
+    kernel.sincos_all(far, s, c)
     np.testing.assert_array_equal(s, np.sin(far))
     np.testing.assert_array_equal(c, np.cos(far))
 
@@ -94,39 +90,103 @@ def test_sincos_within_2_ulp_of_libm():
 def test_bearing_wraps_to_minus_pi_and_handles_zero_offset():
     h = 0.3
     c, s = math.cos(h), math.sin(h)
-    b = kernel._bearing(-math.cos(h), -math.sin(h), c, s)        # straight behind: pi, read as -pi
+    b = kernel.bearing(-math.cos(h), -math.sin(h), c, s)        # straight behind: pi, read as -pi
     assert -math.pi <= b < -math.pi + 1e-15
-    assert kernel._bearing(0.0, 0.0, c, s) == pytest.approx(-h, abs=1e-15)   # atan2(0, 0) - h
+    assert kernel.bearing(0.0, 0.0, c, s) == pytest.approx(-h, abs=1e-15)   # atan2(0, 0) - h
 
 
-WORLDS = [("solo", {}), ("duo", {}), ("duo", {"n_rovers": 3, "hidden": 5, "episodes": 5, "steps": 7}),
+
+
+# ---- the stages, one at a time, against the fused rollout ------------------------------------------------------
+
+WORLDS = [("solo", {}), ("duo", {}), ("trio", {}), ("duo", {"n_rovers": 3, "hidden": 5, "episodes": 5, "steps": 7}),
           ("solo", {"n_rovers": 6, "hidden": 9, "episodes": 11, "coupling": [1, 2, 3], "value": [1.0, 2.0, 4.0]}),
           ("solo", {"n_rovers": 1, "hidden": 1, "episodes": 1, "steps": 1, "sensor_range": 12.5})]
 
 
+def same_bits(a, b):
+    return a.shape == b.shape and np.ascontiguousarray(a).tobytes() == np.ascontiguousarray(b).tobytes()
+
+
+def stepwise(world, genomes, ic):
+    """T x (sense, act, move), then reward: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)."""
+    xy, heading = ic[0].copy(), ic[1].copy()
+    e, n = heading.shape
+    obs, actions = np.empty((e, n, world.obs_dim)), np.empty((e, n, 2))
+    traj_xy, traj_heading = [xy.copy()], [heading.copy()]
+    for _ in range(world.steps):
+        kernel.sense(xy, heading, world.poi_xy, world._type, world.sensor_range, obs)
+        kernel.act(genomes, obs, world.hidden, actions)
+        kernel.move(xy, heading, actions, world.v_max, world.w_max)
+        traj_xy.append(xy.copy())
+        traj_heading.append(heading.copy())
+    returns = np.empty(e)
+    kernel.reward(xy, world.poi_xy, world._coupling, world._value, world.obs_radius, returns)
+    return np.stack(traj_xy, axis=1), np.stack(traj_heading, axis=1), returns
+
+
 @pytest.mark.parametrize("setup,overrides", WORLDS)
-def test_kernel_matches_numpy_rollout(setup, overrides):
-    """Returns equal, trajectories within 1e-8 after all steps (rounding differences grow ~1e6-fold in 15 steps;
-    the old scalar libm kernel and the numpy rollout also differ by up to ~4e-10)."""
+def test_stages_one_at_a_time_give_the_rollout_bit_for_bit(setup, overrides):
     world = make_world(setup, **overrides)
-    ic = world.initial_conditions(seed=3)
-    rng = np.random.default_rng(7)
-    for _ in range(6):
-        genomes = rng.uniform(-2, 2, (world.n_rovers, world.n_params))
+    rng = np.random.default_rng(11)
+    for t in range(4):
+        ic = world.initial_conditions(seed=t)
+        if t == 3:                                                  # far from the start boxes, large headings
+            ic = (ic[0] + rng.uniform(-40, 40, ic[0].shape), ic[1] + rng.uniform(-1e3, 1e3, ic[1].shape))
+        genomes = rng.uniform(-2, 2, (world.n_rovers, world.n_params)) * (1 + 4 * t)
         roll = world.rollout(genomes, ic)
-        xy, heading, returns = numpy_rollout.rollout(world, genomes, ic, record=True)
-        np.testing.assert_array_equal(roll.returns, returns)
-        np.testing.assert_allclose(roll.xy, xy, rtol=0, atol=1e-8)
-        np.testing.assert_allclose(roll.heading, heading, rtol=0, atol=1e-8)
-        final = np.empty_like(ic[0])
-        np.testing.assert_array_equal(world.returns(genomes, ic, final), returns)
-        np.testing.assert_array_equal(final, roll.xy[:, -1])
+        xy, heading, returns = stepwise(world, genomes, ic)
+        assert same_bits(xy, roll.xy) and same_bits(heading, roll.heading) and same_bits(returns, roll.returns)
 
 
-def test_numpy_rollout_observe_matches_world_observe():
+def test_sense_and_act_give_the_fused_loops_numbers():
+    """The batch-first adapters read and write the flat layout of the fused loops (one step, checked by hand)."""
+    world = make_world("duo", n_rovers=3, hidden=4)
+    xy, heading = world.initial_conditions(seed=2, n=5)
+    xy = xy + np.random.default_rng(0).uniform(-20, 20, xy.shape)
+    e, n, d = 5, 3, world.obs_dim
+    obs = np.empty((e, n, d))
+    kernel.sense(xy, heading, world.poi_xy, world._type, world.sensor_range, obs)
+    x, y, h = (np.ascontiguousarray(a.T).ravel() for a in (xy[..., 0], xy[..., 1], heading))   # q = i*E + e
+    s, c, flat = np.empty(n * e), np.empty(n * e), np.empty(d * n * e)
+    kernel.sincos_all(h, s, c)
+    stages.sense_flat(x, y, s, c, n, world.poi_xy, world._type, world.sensor_range, flat)
+    assert same_bits(obs, flat.reshape(d, n, e).transpose(2, 1, 0))
+    np.testing.assert_allclose(obs, world.observe(xy, heading), rtol=0, atol=1e-14)   # libm twin: a few ulp
+    genomes = np.random.default_rng(1).uniform(-2, 2, (n, world.n_params))
+    actions = np.empty((e, n, 2))
+    kernel.act(genomes, obs, world.hidden, actions)
+    a0, a1 = np.empty(n * e), np.empty(n * e)
+    stages.act_flat(genomes, flat, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1)
+    assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
+
+
+def test_poi_test_has_one_home():
+    """observers, poi_of and reward agree with a brute-force count of distances <= radius, ties included."""
     world = make_world("duo")
-    rng = np.random.default_rng(1)
-    xy, heading = rng.uniform(-35, 35, (9, 4, 2)), rng.uniform(-20, 20, (9, 4))
-    np.testing.assert_allclose(numpy_rollout.observe(world, xy, heading), world.observe(xy, heading),
-                               rtol=0, atol=1e-12)
-    np.testing.assert_array_equal(numpy_rollout.team_return(world, xy), world.team_return(xy))
+    rng = np.random.default_rng(3)
+    xy = world.poi_xy[rng.integers(0, 10, (200, 4))] + rng.normal(0, 1.5, (200, 4, 2))
+    xy[:20, 0] = world.poi_xy[rng.integers(0, 10, 20)] + [world.obs_radius, 0.0]     # exactly on the radius
+    dist = np.sqrt(((world.poi_xy[None, None] - xy[:, :, None]) ** 2).sum(-1))      # (E, N, P)
+    inside = dist <= world.obs_radius
+    count = np.zeros((200, 10), dtype=np.int8)
+    kernel.observers(xy, world.poi_xy, world.obs_radius, count)
+    np.testing.assert_array_equal(count, inside.sum(axis=1))
+    first = np.where(inside.any(-1), inside.argmax(-1), -1)
+    assert all(kernel.poi_of(*xy[e, i], world.poi_xy, world.obs_radius) == first[e, i]
+               for e in range(200) for i in range(4))
+    returns, paid = np.empty(200), np.empty(200)
+    kernel.reward(xy, world.poi_xy, world._coupling, world._value, world.obs_radius, returns)
+    kernel.payout(count, world._coupling, world._value, paid)
+    np.testing.assert_array_equal(returns, paid)
+    np.testing.assert_array_equal(returns, np.where(count >= world._coupling, world._value, 0).sum(-1))
+    np.testing.assert_array_equal(returns, world.team_return(xy))
+
+
+@pytest.mark.parametrize("fn", [kernel.sense, kernel.act, kernel.move, kernel.observers, kernel.payout,
+                                kernel.reward, rules.within, rules.poi_of], ids=lambda f: f.__name__)
+def test_docstring_examples_run(fn):
+    test = doctest.DocTestParser().get_doctest(fn.__doc__, {fn.__name__: fn}, fn.__name__, None, 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    assert test.examples and runner.failures == 0

@@ -1,4 +1,5 @@
-"""Rover world: geometry, initial conditions, compiled rollout kernel and reward."""
+"""Rover world: geometry and initial conditions (``world``), the compiled kernel in stages (``kernel``),
+and the SPEC in plain numpy (``reference``, the tests' oracle)."""
 
 from rovermarl.env.world import InitialConditions, Rollout, World, make_world
 

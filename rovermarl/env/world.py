@@ -164,12 +164,13 @@ class World:
 
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
-        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim)."""
+        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim) (libm rounding: ``kernel.sense_libm``;
+        the rollout's ``kernel.sense`` reads the same within a few ulp)."""
         xy, heading = self._batch(xy, heading)
         out = np.empty(heading.shape + (self.obs_dim,))
-        kernel.sense_batch(xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers),
-                           self.poi_xy, self._type, float(self.sensor_range),
-                           out.reshape(-1, self.n_rovers, self.obs_dim))
+        kernel.sense_libm(xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers),
+                          self.poi_xy, self._type, float(self.sensor_range),
+                          out.reshape(-1, self.n_rovers, self.obs_dim))
         return out
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:
@@ -178,8 +179,8 @@ class World:
         if xy.ndim < 2 or xy.shape[-2:] != (self.n_rovers, 2):
             raise ValueError(f"xy must have shape (..., {self.n_rovers}, 2), got {xy.shape}")
         out = np.empty(xy.shape[:-2])
-        kernel.team_return_batch(xy.reshape(-1, self.n_rovers, 2), self.poi_xy, self._coupling,
-                                 self._value, float(self.obs_radius), out.reshape(-1))
+        kernel.reward(xy.reshape(-1, self.n_rovers, 2), self.poi_xy, self._coupling, self._value,
+                      float(self.obs_radius), out.reshape(-1))
         return out
 
     # ---- rollouts -----------------------------------------------------------------------------

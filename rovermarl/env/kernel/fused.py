@@ -1,0 +1,57 @@
+"""The fused team rollout (numba): the hot path of every evaluation, built from the stage loops of
+:mod:`rovermarl.env.kernel.stages` on their flat layout, with all buffers allocated once per call."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rovermarl.env.kernel.math import FAST, sincos_all
+from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, reward, sense_flat, to_flat
+
+
+@njit(**FAST)
+def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden,
+            sensor_range, obs_radius, v_max, w_max, returns, traj_xy, traj_heading, final_xy):
+    """Run E episodes of T steps for one team; the per-episode team returns go to ``returns`` (E,).
+
+    genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N); poi_xy (P, 2), poi_type (P,) (the sensors'
+    third number), coupling (P,) int, value (P,); ``steps`` T, ``hidden`` H; w_max in radians.
+    If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
+    arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
+    unless its first axis is zero-sized.
+    Each step: all rovers sense, all act, then each turns and moves (``sense_flat``, ``act_flat``, ``move_flat``).
+    After the last step, :func:`~rovermarl.env.kernel.stages.reward` scores the final positions.
+    """
+    n_ep, n = heading0.shape
+    ne = n * n_ep
+    record = traj_xy.shape[0] == n_ep
+    d = 3 * poi_xy.shape[0] + 2 * n
+    state = np.empty((7, ne))
+    x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    obs = np.empty(d * ne)
+    hid = np.empty(hidden * n_ep)
+    rows = np.empty(d, dtype=np.int64)
+    to_flat(xy0[:, :, 0], x)
+    to_flat(xy0[:, :, 1], y)
+    to_flat(heading0, heading)
+    if record:
+        traj_xy[:, 0] = xy0
+        traj_heading[:, 0] = heading0
+    sincos_all(heading, sin_h, cos_h)
+    for t in range(steps):
+        sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
+        act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1)
+        move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max)
+        if record:
+            from_flat(x, traj_xy[:, t + 1, :, 0])
+            from_flat(y, traj_xy[:, t + 1, :, 1])
+            from_flat(heading, traj_heading[:, t + 1])
+    # reward (SPEC section 1): the final positions. env.reward's per-step readings (SPEC section 8) would call
+    # observers/payout after each move above and combine the step scores here.
+    xy = np.empty((n_ep, n, 2))
+    from_flat(x, xy[:, :, 0])
+    from_flat(y, xy[:, :, 1])
+    if final_xy.shape[0] == n_ep:
+        final_xy[:] = xy
+    reward(xy, poi_xy, coupling, value, obs_radius, returns)

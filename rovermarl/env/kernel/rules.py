@@ -1,0 +1,89 @@
+"""The world's rules, one home each, for one rover / one target (numba; SPEC sections 1-3).
+
+- :func:`within`: a rover observes a POI when its distance is ``<= radius`` (reward, occupancy, events);
+- :func:`poi_of`: the POI a rover observes (lowest index), or -1;
+- :func:`reading`: the sensor encoding of one target, ``[d / range, bearing / pi, type]``, ``[1, 0, 0]`` beyond range;
+- :func:`bearing`: a target's direction in the rover's frame, in [-pi, pi);
+- :func:`turn`, :func:`speed`: the action mapping (turn ``a1 * w_max``, speed ``(a0 + 1) / 2 * v_max``).
+
+Where the world options of SPEC section 8 go: ``env.speed`` in :func:`speed`; ``env.poi_type`` in the type array
+that the World passes to the sensors (``World._type``); ``env.reward`` in the reward block at the end of
+:func:`rovermarl.env.kernel.fused.rollout` (per-step :func:`~rovermarl.env.kernel.stages.observers` and
+:func:`~rovermarl.env.kernel.stages.payout` instead of one call after the last step).
+
+``inline="always"`` helpers take their caller's compile options: :func:`bearing`, :func:`turn` and :func:`speed`
+belong in ``FAST`` (FMA-contracting) loops only; :func:`reading` does no arithmetic. :func:`within` and
+:func:`poi_of` are compiled on their own without contraction, so every caller gets the same bits.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from rovermarl.env.kernel.math import FAST, atan2
+
+
+@njit(cache=True)
+def within(px, py, x, y, radius):
+    """True when (x, y) is within ``radius`` of the POI at (px, py) (distance ``<= radius``).
+
+    >>> within(13.0, 0.0, 15.0, 0.0, 2.0), within(13.0, 0.0, 15.0 + 1e-9, 0.0, 2.0)
+    (True, False)
+    """
+    dx = px - x
+    dy = py - y
+    return math.sqrt(dx * dx + dy * dy) <= radius
+
+
+@njit(cache=True)
+def poi_of(x, y, poi_xy, radius):
+    """The lowest POI index j with (x, y) :func:`within` ``radius`` of ``poi_xy[j]`` (P, 2), else -1.
+
+    >>> import numpy as np
+    >>> poi_of(12.0, 0.5, np.array([[13.0, 0.0], [-13.0, 0.0]]), 2.0), poi_of(0.0, 0.0, np.zeros((1, 2)) + 5, 2.0)
+    (0, -1)
+    """
+    for j in range(poi_xy.shape[0]):
+        if within(poi_xy[j, 0], poi_xy[j, 1], x, y, radius):
+            return j
+    return -1
+
+
+@njit(inline="always")
+def reading(d, sensor_range, dn, bn, typ):
+    """Sensor encoding of a target at distance ``d``: ``(dn, bn, typ)`` if ``d <= sensor_range``, else
+    ``(1, 0, 0)``; ``dn = d / range`` and ``bn = bearing / pi`` as the caller rounds them. A rover target passes
+    ``typ = 0`` and keeps two numbers."""
+    seen = d <= sensor_range
+    return (dn if seen else 1.0), (bn if seen else 0.0), (typ if seen else 0.0)
+
+
+@njit(inline="always", **FAST)
+def bearing(dx, dy, c, s):
+    """Bearing in [-pi, pi) of world offset (dx, dy) seen by a rover with heading h, c = cos h, s = sin h.
+
+    ``atan2`` of the offset rotated into the rover frame equals ``wrap(atan2(dy, dx) - h)`` up to
+    rounding. A zero offset reads as the world x axis (``atan2(0, 0) = 0``), as in the SPEC formula.
+    """
+    zero = (dx == 0.0) & (dy == 0.0)
+    xr = dx * c + dy * s
+    yr = dy * c - dx * s
+    ms = -s
+    xr = c if zero else xr
+    yr = ms if zero else yr
+    b = atan2(yr, xr)
+    return -math.pi if b >= math.pi else b
+
+
+@njit(inline="always", **FAST)
+def turn(heading, a1, w_max):
+    """New heading after action ``a1`` in [-1, 1]: ``heading + a1 * w_max`` (radians)."""
+    return heading + a1 * w_max
+
+
+@njit(inline="always", **FAST)
+def speed(a0, v_max):
+    """Distance moved for action ``a0`` in [-1, 1]: ``(a0 + 1) / 2 * v_max``."""
+    return (a0 + 1.0) * 0.5 * v_max

@@ -1,0 +1,353 @@
+"""The world in stages (numba): sense, act, move and reward on batched arrays (SPEC sections 1-4).
+
+Shapes: E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units, G genome length.
+
+The public stages take batch-first arrays (``xy (E, N, 2)``, ``heading (E, N)``, ``obs (E, N, D)``, ``actions
+(E, N, 2)``). Each adapts the layout and runs the same compiled loop (``*_flat``) as the fused
+:func:`rovermarl.env.kernel.fused.rollout`, so a step-by-step pipeline ``sense -> act -> move`` and then ``reward``
+gives the rollout's numbers bit for bit. The flat layout keeps the (rover, episode) pairs ``q = i*E + e`` rover-major
+in (N*E,) arrays, and observations feature-major in (D*N*E,) (feature k of pair q at ``k*N*E + q``), so that the
+loops over episodes are contiguous and LLVM vectorises them. Indices there are unsigned (``U``): numba then emits
+no negative-index wraparound, which blocks vectorisation.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from rovermarl.env.kernel.math import FAST, sincos_all, tanh, wrap
+from rovermarl.env.kernel.rules import bearing, reading, speed, turn, within
+
+U = np.uint64
+
+
+# ---- batch-first stages ------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
+    """Observations of all rovers of all episodes: xy (E, N, 2), heading (E, N), poi_xy (P, 2), poi_type (P,)
+    -> out (E, N, D).
+
+    POI j fills ``[d / range, bearing / pi, type]`` at 3j; rover m fills ``[d / range, bearing / pi]`` at 3P + 2m
+    (own slot ``[0, 0]``); beyond ``sensor_range`` a target reads ``[1, 0, 0]`` / ``[1, 0]`` (:func:`reading`).
+
+    >>> import numpy as np
+    >>> xy = np.array([[[0.0, 0.0], [3.0, 4.0]]])                 # E = 1 episode, N = 2 rovers
+    >>> out = np.empty((1, 2, 3 + 4))                              # one POI, at (13, 0), of type 1
+    >>> sense(xy, np.zeros((1, 2)), np.array([[13.0, 0.0]]), np.ones(1), 30.0, out)
+    >>> out[0, 0].round(4).tolist()
+    [0.4333, 0.0, 1.0, 0.0, 0.0, 0.1667, 0.2952]
+    """
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    d = 3 * poi_xy.shape[0] + 2 * n
+    if xy.shape != (n_ep, n, 2) or out.shape != (n_ep, n, d):
+        raise ValueError("sense: expected xy (E, N, 2), heading (E, N) and out (E, N, 3P + 2N)")
+    state = np.empty((5, ne))
+    x, y, h, sin_h, cos_h = state[0], state[1], state[2], state[3], state[4]
+    to_flat(xy[:, :, 0], x)
+    to_flat(xy[:, :, 1], y)
+    to_flat(heading, h)
+    sincos_all(h, sin_h, cos_h)
+    obs = np.empty(d * ne)
+    sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
+    for k in range(d):
+        from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
+
+
+@njit(cache=True)
+def act(genomes, obs, hidden, out):
+    """Actions of a team over a batch of episodes: genomes (N, G) one row per rover, obs (E, N, D) -> out (E, N, 2),
+    the two tanh outputs ``(a0, a1)`` of each rover's MLP (D -> H -> 2, tanh on both layers; SPEC section 4).
+
+    >>> import numpy as np
+    >>> g = np.zeros((1, 3 * 2 + 2 + 2 * 2 + 2)); g[0, -2:] = [0.5, -1.0]   # N = 1, D = 3, H = 2: biases only
+    >>> out = np.empty((1, 1, 2))
+    >>> act(g, np.ones((1, 1, 3)), 2, out)
+    >>> out.round(4).tolist()
+    [[[0.4621, -0.7616]]]
+    """
+    n_ep, n, d = obs.shape
+    ne = n * n_ep
+    if genomes.shape != (n, (d + 3) * hidden + 2) or out.shape != (n_ep, n, 2):
+        raise ValueError("act: expected genomes (N, (D + 3) H + 2), obs (E, N, D) and out (E, N, 2)")
+    flat = np.empty(d * ne)
+    for k in range(d):
+        to_flat(obs[:, :, k], flat[k * ne:(k + 1) * ne])
+    a = np.empty((2, ne))
+    act_flat(genomes, flat, n_ep, hidden, np.empty(hidden * n_ep), np.empty(d, dtype=np.int64), a[0], a[1])
+    from_flat(a[0], out[:, :, 0])
+    from_flat(a[1], out[:, :, 1])
+
+
+@njit(cache=True)
+def move(xy, heading, actions, v_max, w_max):
+    """One step of motion, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2). Each rover turns by
+    :func:`turn` first, then moves :func:`speed` along its new heading.
+
+    >>> import numpy as np
+    >>> xy, heading = np.zeros((1, 1, 2)), np.zeros((1, 1))
+    >>> move(xy, heading, np.array([[[1.0, 0.5]]]), 1.0, np.pi / 3)        # full speed, turn 30 degrees
+    >>> xy.round(4).tolist(), heading.round(4).tolist()
+    ([[[0.866, 0.5]]], [[0.5236]])
+    """
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    if xy.shape != (n_ep, n, 2) or actions.shape != (n_ep, n, 2):
+        raise ValueError("move: expected xy (E, N, 2), heading (E, N) and actions (E, N, 2)")
+    state = np.empty((7, ne))
+    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    to_flat(xy[:, :, 0], x)
+    to_flat(xy[:, :, 1], y)
+    to_flat(heading, h)
+    to_flat(actions[:, :, 0], a0)
+    to_flat(actions[:, :, 1], a1)
+    move_flat(x, y, h, sin_h, cos_h, a0, a1, v_max, w_max)
+    from_flat(x, xy[:, :, 0])
+    from_flat(y, xy[:, :, 1])
+    from_flat(h, heading)
+
+
+@njit(cache=True)
+def observers(xy, poi_xy, radius, out):
+    """Rovers observing each POI: out[e, j] += rovers of episode e :func:`within` ``radius`` of POI j.
+    xy (E, N, 2), poi_xy (P, 2), out (E, P) integers.
+
+    >>> import numpy as np
+    >>> out = np.zeros((1, 2), dtype=np.int64)
+    >>> observers(np.array([[[12.0, 0.0], [14.0, 1.0]]]), np.array([[13.0, 0.0], [-13.0, 0.0]]), 2.0, out)
+    >>> out.tolist()
+    [[2, 0]]
+    """
+    if out.shape != (xy.shape[0], poi_xy.shape[0]):
+        raise ValueError("observers: expected xy (E, N, 2), poi_xy (P, 2) and out (E, P)")
+    for e in range(xy.shape[0]):
+        for i in range(xy.shape[1]):
+            for j in range(poi_xy.shape[0]):
+                if within(poi_xy[j, 0], poi_xy[j, 1], xy[e, i, 0], xy[e, i, 1], radius):
+                    out[e, j] += 1
+
+
+@njit(cache=True)
+def payout(count, coupling, value, out):
+    """The reward rule: out[e] = sum over POIs j (in index order) of ``value[j]`` if ``count[e, j] >= coupling[j]``.
+    count (E, P) observers, coupling (P,), value (P,) -> out (E,).
+
+    >>> import numpy as np
+    >>> out = np.empty(1)
+    >>> payout(np.array([[2, 1]]), np.array([2, 2]), np.array([3.0, 3.0]), out)
+    >>> out.tolist()
+    [3.0]
+    """
+    if out.shape[0] != count.shape[0] or coupling.shape[0] != count.shape[1] or value.shape[0] != count.shape[1]:
+        raise ValueError("payout: expected count (E, P), coupling (P,), value (P,) and out (E,)")
+    for e in range(count.shape[0]):
+        total = 0.0
+        for j in range(count.shape[1]):
+            if count[e, j] >= coupling[j]:
+                total += value[j]
+        out[e] = total
+
+
+@njit(cache=True)
+def reward(xy, poi_xy, coupling, value, radius, out):
+    """Team return of each episode from positions: xy (E, N, 2), poi_xy (P, 2), coupling (P,), value (P,) -> out (E,)
+    (:func:`observers`, then :func:`payout`).
+
+    >>> import numpy as np
+    >>> out = np.empty(2)
+    >>> reward(np.array([[[12.0, 0.0]], [[0.0, 0.0]]]), np.array([[13.0, 0.0]]), np.ones(1, np.int64), np.ones(1),
+    ...        2.0, out)
+    >>> out.tolist()
+    [1.0, 0.0]
+    """
+    count = np.zeros((xy.shape[0], poi_xy.shape[0]), dtype=np.int64)
+    observers(xy, poi_xy, radius, count)
+    payout(count, coupling, value, out)
+
+
+@njit(cache=True)
+def sense_libm(xy, heading, poi_xy, poi_type, sensor_range, out):
+    """:func:`sense` with libm ``atan2``, ``wrap(atan2(dy, dx) - heading)`` and true division: the same readings
+    within a few ulp. ``World.observe`` reports these. xy (E, N, 2), heading (E, N) -> out (E, N, D)."""
+    n = xy.shape[1]
+    p = poi_xy.shape[0]
+    for b in range(xy.shape[0]):
+        for i in range(n):
+            x = xy[b, i, 0]
+            y = xy[b, i, 1]
+            h = heading[b, i]
+            for j in range(p):
+                dx = poi_xy[j, 0] - x
+                dy = poi_xy[j, 1] - y
+                d = math.sqrt(dx * dx + dy * dy)
+                o = 3 * j
+                out[b, i, o], out[b, i, o + 1], out[b, i, o + 2] = reading(
+                    d, sensor_range, d / sensor_range, wrap(math.atan2(dy, dx) - h) / math.pi, poi_type[j])
+            for m in range(n):
+                o = 3 * p + 2 * m
+                dx = xy[b, m, 0] - x
+                dy = xy[b, m, 1] - y
+                d = math.sqrt(dx * dx + dy * dy)
+                r0, r1, _ = reading(d, sensor_range, d / sensor_range, wrap(math.atan2(dy, dx) - h) / math.pi, 0.0)
+                out[b, i, o] = 0.0 if m == i else r0
+                out[b, i, o + 1] = 0.0 if m == i else r1
+
+
+# ---- flat layout: the loops of the fused rollout -----------------------------------------------------------------
+
+@njit(cache=True)
+def to_flat(a, out):
+    """a (E, N) -> out (N*E,) rover-major: ``out[i*E + e] = a[e, i]``."""
+    n_ep, n = a.shape
+    for i in range(n):
+        for e in range(n_ep):
+            out[i * n_ep + e] = a[e, i]
+
+
+@njit(cache=True)
+def from_flat(v, out):
+    """v (N*E,) rover-major -> out (E, N): ``out[e, i] = v[i*E + e]``."""
+    n_ep, n = out.shape
+    for i in range(n):
+        for e in range(n_ep):
+            out[e, i] = v[i * n_ep + e]
+
+
+@njit(**FAST)
+def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
+    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major."""
+    ne = x.shape[0]
+    ep = ne // n
+    p = poi_xy.shape[0]
+    inv_pi = 1.0 / math.pi
+    inv_range = 1.0 / sensor_range
+    for j in range(p):
+        px = poi_xy[j, 0]
+        py = poi_xy[j, 1]
+        typ = poi_type[j]
+        o = U(3 * j * ne)
+        for q in range(ne):
+            dx = px - x[q]
+            dy = py - y[q]
+            d = math.sqrt(dx * dx + dy * dy)
+            b = bearing(dx, dy, cos_h[q], sin_h[q])
+            obs[o + U(q)], obs[o + U(ne + q)], obs[o + U(2 * ne + q)] = reading(
+                d, sensor_range, d * inv_range, b * inv_pi, typ)
+    for m in range(n):
+        o = U((3 * p + 2 * m) * ne)
+        for i in range(n):
+            qi = U(i * ep)
+            qm = U(m * ep)
+            if i == m:
+                for e in range(ep):
+                    obs[o + qi + U(e)] = 0.0
+                    obs[o + U(ne) + qi + U(e)] = 0.0
+                continue
+            for e in range(ep):
+                q = qi + U(e)
+                dx = x[qm + U(e)] - x[q]
+                dy = y[qm + U(e)] - y[q]
+                d = math.sqrt(dx * dx + dy * dy)
+                b = bearing(dx, dy, cos_h[q], sin_h[q])
+                obs[o + q], obs[o + U(ne) + q], _ = reading(d, sensor_range, d * inv_range, b * inv_pi, 0.0)
+
+
+@njit(**FAST)
+def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
+    """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
+    hid (H*E,) and rows (D,) int64 are scratch."""
+    ne = a0.shape[0]
+    for i in range(genomes.shape[0]):
+        q0 = i * n_ep
+        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+
+
+@njit(**FAST)
+def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max):
+    """:func:`move` in the flat layout, in place: all arrays (N*E,); sin_h, cos_h follow the new heading."""
+    ne = x.shape[0]
+    for q in range(ne):
+        heading[q] = turn(heading[q], a1[q], w_max)
+    sincos_all(heading, sin_h, cos_h)
+    for q in range(ne):
+        v = speed(a0[q], v_max)
+        x[q] += v * cos_h[q]
+        y[q] += v * sin_h[q]
+
+
+@njit(**FAST)
+def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
+    """MLP of one rover over its E episodes.
+
+    genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``; hid (H*E,) scratch ->
+    out0, out1 (E,) = the two tanh outputs; rows (D,) int scratch. Inputs are summed in index order.
+    """
+    d = obs.shape[0] // ne
+    ep = out0.shape[0]
+    o_b1 = d * hidden
+    o_w2 = o_b1 + hidden
+    o_b2 = o_w2 + 2 * hidden
+    for u in range(hidden):
+        b = genome[U(o_b1 + u)]
+        for e in range(ep):
+            hid[U(u * ep + e)] = b
+    # Rows of obs that are zero in all E episodes (own rover slot, solo POI types, ...) add nothing:
+    # skip them. Exact for finite weights (h + 0 * w == h, up to the sign of a zero h).
+    nr = 0
+    for k in range(d):
+        ok = U(k * ne + q0)
+        nz = False
+        for e in range(ep):
+            nz |= obs[ok + U(e)] != 0.0
+        if nz:
+            rows[nr] = k
+            nr += 1
+    n4 = nr - nr % 4
+    for r in range(0, n4, 4):                     # four inputs per pass: a quarter of the loads/stores of hid
+        k0 = rows[r]
+        k1 = rows[r + 1]
+        k2 = rows[r + 2]
+        k3 = rows[r + 3]
+        o0 = U(k0 * ne + q0)
+        o1 = U(k1 * ne + q0)
+        o2 = U(k2 * ne + q0)
+        o3 = U(k3 * ne + q0)
+        for u in range(hidden):
+            w0 = genome[U(k0 * hidden + u)]
+            w1 = genome[U(k1 * hidden + u)]
+            w2 = genome[U(k2 * hidden + u)]
+            w3 = genome[U(k3 * hidden + u)]
+            ou = U(u * ep)
+            for e in range(ep):
+                i = U(e)
+                hid[ou + i] = (((hid[ou + i] + obs[o0 + i] * w0) + obs[o1 + i] * w1)
+                               + obs[o2 + i] * w2) + obs[o3 + i] * w3
+    for r in range(n4, nr):
+        k = rows[r]
+        ok = U(k * ne + q0)
+        for u in range(hidden):
+            w = genome[U(k * hidden + u)]
+            ou = U(u * ep)
+            for e in range(ep):
+                hid[ou + U(e)] += obs[ok + U(e)] * w
+    for v in range(hidden * ep):
+        hid[v] = tanh(hid[v])
+    b0 = genome[U(o_b2)]
+    b1 = genome[U(o_b2 + 1)]
+    for e in range(ep):
+        out0[e] = b0
+        out1[e] = b1
+    for u in range(hidden):
+        w0 = genome[U(o_w2 + 2 * u)]
+        w1 = genome[U(o_w2 + 2 * u + 1)]
+        ou = U(u * ep)
+        for e in range(ep):
+            out0[e] += hid[ou + U(e)] * w0
+            out1[e] += hid[ou + U(e)] * w1
+    for e in range(ep):
+        out0[e] = tanh(out0[e])
+        out1[e] = tanh(out1[e])

@@ -1,0 +1,44 @@
+"""Compiled helpers for the kernel tests only (not part of the package)."""
+
+import math
+
+from numba import njit
+
+from rovermarl.env.kernel.math import FAST, atan2, tanh
+
+
+@njit(**FAST)
+def atan2_array(y, x, out):
+    """out (M,) <- the kernel's :func:`atan2` of y, x (M,), in a vectorised loop as in the kernel."""
+    for q in range(out.shape[0]):
+        out[q] = atan2(y[q], x[q])
+
+
+@njit(**FAST)
+def tanh_array(x, out):
+    """out (M,) <- the kernel's :func:`tanh` of x (M,), in a vectorised loop as in the kernel."""
+    for q in range(out.shape[0]):
+        out[q] = tanh(x[q])
+
+
+@njit(cache=True)
+def act_libm(genome, obs, hidden, h_buf):
+    """MLP forward for one rover with libm tanh: genome (G,), obs (D,) -> (a0, a1); h_buf (H,) scratch."""
+    d = obs.shape[0]
+    o_b1 = d * hidden
+    o_w2 = o_b1 + hidden
+    o_b2 = o_w2 + 2 * hidden
+    for u in range(hidden):
+        h_buf[u] = genome[o_b1 + u]
+    for i in range(d):
+        v = obs[i]
+        row = i * hidden
+        for u in range(hidden):
+            h_buf[u] += v * genome[row + u]
+    z0 = genome[o_b2]
+    z1 = genome[o_b2 + 1]
+    for u in range(hidden):
+        t = math.tanh(h_buf[u])
+        z0 += t * genome[o_w2 + 2 * u]
+        z1 += t * genome[o_w2 + 2 * u + 1]
+    return math.tanh(z0), math.tanh(z1)
