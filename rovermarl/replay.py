@@ -97,17 +97,23 @@ def has_display() -> bool:
 
 
 def check_rrd(rrd: Path) -> None:
-    """Raise :class:`ReplayError` if ``rrd`` is not a readable Rerun recording (e.g. truncated by a copy)."""
+    """Raise :class:`ReplayError` unless ``rrd`` is a complete Rerun recording. A file cut short (a copy or a
+    transfer that stopped) fails to decode, or, when cut between two messages, lacks the footer that every
+    recording written here ends with."""
     from rerun.chunk import RrdReader
 
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")                  # "no footer": still readable (older files)
-            if not RrdReader(str(rrd)).recordings():
-                raise ReplayError(f"{rrd}: holds no recording")
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            found = RrdReader(str(rrd)).recordings()
     except RuntimeError as e:
         raise ReplayError(f"{rrd}: not a readable Rerun recording (truncated or corrupt?): "
                           f"{str(e).splitlines()[0]}") from None
+    if any("no footer" in str(w.message) for w in caught):
+        raise ReplayError(f"{rrd}: not a readable Rerun recording (truncated? it has no footer); copy it again, "
+                          "or re-record it with --resim")
+    if not found:
+        raise ReplayError(f"{rrd}: holds no recording")
 
 
 def port_free(port: int, host: str = "127.0.0.1") -> bool:
