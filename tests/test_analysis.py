@@ -13,8 +13,8 @@ from rovermarl.analysis import stats
 from rovermarl.analysis.claims import claims
 from rovermarl.analysis.figures import find_jobs
 from rovermarl.analysis.results import Curves, export_fig6, log_grid
-from rovermarl.evolution import Run, evolve
-from rovermarl.job import run_job
+from rovermarl.runner import Run
+from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg, run_cli
 
 
@@ -73,21 +73,21 @@ def _final_poi(world, genomes, ic):
 def test_switched_counts_episodes_where_unmutated_rovers_change_poi(overrides):
     cfg = make_cfg("setup=duo", "generations=120", *overrides)
     run = Run(cfg, 5)
+    parent_genomes = run.team.copy()
     teams = []
     inner = run.evaluate
     run.evaluate = lambda genomes: (teams.append(genomes.copy()), inner(genomes))[1]
-    evolve(run, 120)
-    world, h = run.parts.world, run.history
-    parent = _final_poi(world, run.parts.team.genomes(Run(cfg, 5).parents), run.ic)
-    parent_genomes = Run(cfg, 5).parents_genomes
+    h = run.advance(120)
+    world = run.parts.world
+    parent = _final_poi(world, parent_genomes, run.ic)
     for g, child_genomes in enumerate(teams):
         mutated = (child_genomes != parent_genomes).any(axis=1)
         child = _final_poi(world, child_genomes, run.ic)
         expected = -1 if mutated.all() else int((child[:, ~mutated] != parent[:, ~mutated]).any(axis=1).sum())
-        assert h.switched[g] == expected, g
-        if h.accepted[g]:
+        assert h["switched"][g] == expected, g
+        if h["accepted"][g]:
             parent, parent_genomes = child, child_genomes
-    assert (h.switched >= 0).any() == ("team=homogeneous" not in overrides)
+    assert (h["switched"] >= 0).any() == ("team=homogeneous" not in overrides)
 
 
 # ---- the whole pipeline on a tiny budget -----------------------------------------------------------------------
