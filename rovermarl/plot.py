@@ -16,7 +16,10 @@ from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
-from rovermarl.analysis.figures import FORMATS, PlotError, plot_sweep
+from rovermarl.analysis.draw import FORMATS
+from rovermarl.analysis.figures import plot_sweep
+from rovermarl.analysis.levels import THRESHOLDS
+from rovermarl.analysis.sweep import SweepError
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
@@ -45,7 +48,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("path", type=Path, help="sweep dir (from `rovermarl.train -m`) or one job dir")
     p.add_argument("--out", type=Path, default=None, help="output dir (default: PATH/figures)")
     p.add_argument("--threshold", type=_threshold, action="append", default=[], metavar="SETUP=VALUE",
-                   help="score whose first reaching is marked by quartile lines (default duo=5, solo=4)")
+                   help="score whose first reaching is marked by quartile lines (default "
+                        + ", ".join(f"{setup}={level:g}" for setup, level in THRESHOLDS.items()) + ")")
     p.add_argument("--format", nargs="+", choices=("png", "pdf", "svg"), default=list(FORMATS), dest="formats")
     p.add_argument("--xscale", choices=("linear", "log"), default="linear",
                    help="generation axes: linear, or log (generation 0 included)")
@@ -64,7 +68,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     try:
         index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
                            args.update_gen, log=log, xscale=args.xscale)
-    except PlotError as e:
+    except SweepError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
     out = args.out if args.out is not None else args.path / "figures"

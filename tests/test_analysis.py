@@ -11,8 +11,9 @@ import pytest
 
 from rovermarl.analysis import stats
 from rovermarl.analysis.claims import claims
-from rovermarl.analysis.figures import find_jobs
-from rovermarl.analysis.results import Curves, export_fig6, log_grid
+from rovermarl.analysis.curves import Curves, log_grid
+from rovermarl.analysis.export import export_fig6
+from rovermarl.analysis.sweep import find_jobs
 from rovermarl.runner import Run
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg, run_cli

@@ -8,8 +8,10 @@ import pytest
 from omegaconf import OmegaConf
 
 from rovermarl import make_world
-from rovermarl.analysis import figures
-from rovermarl.analysis.figures import MAX_POINTS, fig_curves, find_jobs, labels, quartile_generations
+from rovermarl.analysis import draw, figures
+from rovermarl.analysis.curve_figures import fig_curves, quartile_generations
+from rovermarl.analysis.draw import MAX_POINTS
+from rovermarl.analysis.sweep import find_jobs, labels
 from rovermarl.plot import PlotCallback, main
 from tests.conftest import run_cli
 
@@ -127,7 +129,7 @@ def test_downsample_is_exact_for_step_curves():
     score = np.zeros(30_001)
     score[[100, 20_000, 29_000]] = 1
     score = np.cumsum(score)
-    x, y = figures.downsample(score)
+    x, y = draw.downsample(score)
     assert len(x) <= 10 and x[-1] == 30_000
     np.testing.assert_array_equal(np.interp(np.arange(30_001), x, y), score)
 

@@ -1,1 +1,3 @@
-"""Analysis of finished sweeps: paper-style figures (:mod:`rovermarl.analysis.figures`)."""
+"""Analysis of finished sweeps: reading them (:mod:`~rovermarl.analysis.sweep`), compact results
+(:mod:`~rovermarl.analysis.export`, :mod:`~rovermarl.analysis.results`), claim statistics
+(:mod:`~rovermarl.analysis.claims`) and paper-style figures (:mod:`~rovermarl.analysis.figures`)."""

@@ -1,7 +1,7 @@
 """``python -m rovermarl.analysis {export,claims,selectors} ...``: compact results of a sweep, and the claims report.
 
 - ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6]``: write the compact results of every finished job
-  (see :mod:`rovermarl.analysis.results`).
+  (see :mod:`rovermarl.analysis.export`).
 - ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
   (see :mod:`rovermarl.analysis.claims`).
 - ``selectors RESULTS_DIR [--against METHOD]``: the k-selector comparison; ``selectors.md`` and ``.json``.
@@ -15,8 +15,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from rovermarl.analysis.figures import PlotError
 from rovermarl.analysis.results import ResultsError
+from rovermarl.analysis.sweep import SweepError
 
 PROG = "rovermarl.analysis"
 
@@ -47,7 +47,7 @@ def main(argv=None) -> None:
     args = parser().parse_args(argv)
     try:
         if args.command == "export":
-            from rovermarl.analysis.results import export
+            from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6,
                    log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
         elif args.command == "claims":
@@ -58,7 +58,7 @@ def main(argv=None) -> None:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against)
             print(text, end="")
-    except (ResultsError, PlotError) as e:
+    except (ResultsError, SweepError) as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
 

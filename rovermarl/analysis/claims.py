@@ -18,11 +18,10 @@ from pathlib import Path
 import numpy as np
 
 from rovermarl.analysis import stats
+from rovermarl.analysis.levels import THRESHOLDS, optimum, quartile_times, setup_rank
 from rovermarl.analysis.results import COUPLING_KINDS, Result, load
 from rovermarl.record.outputs import atomic_open, write_json
 
-OPTIMUM = {"solo": 4.0, "duo": 6.0, "trio": 5.0}
-THRESHOLD = {"solo": 4.0, "duo": 5.0, "trio": 5.0}  # the level whose first reaching the paper's dotted lines mark
 FIXED = ("k=1", "k=2", "k=4", "homogeneous")
 ORDER = ("k=1", "k=2", "k=3", "k=4", "homogeneous", "adaptive", "ucb1", "thompson", "egreedy", "exp3s", "schedule",
          "k=1 strict", "k=2 strict", "k=4 strict")
@@ -47,18 +46,13 @@ class Claims:
 
     def setups(self) -> list[str]:
         names = dict.fromkeys(s for s, _ in self.jobs)
-        return sorted(names, key=lambda s: (list(OPTIMUM).index(s) if s in OPTIMUM else len(OPTIMUM), s))
+        return sorted(names, key=lambda s: (setup_rank(s), s))
 
     def levels(self, setup: str) -> tuple[float, float]:
-        """(optimum, threshold) of a setup: the paper's, or the world's maximum return for other setups."""
-        if setup in OPTIMUM:
-            return OPTIMUM[setup], THRESHOLD[setup]
-        from omegaconf import OmegaConf
-
-        from rovermarl.env import World
-        r = self.methods(setup)[0]
-        best = World.from_config(OmegaConf.load(r.path / "config.yaml")).max_return
-        return best, best
+        """(optimum, threshold) of a setup: the world's maximum return, and the paper's threshold (else the
+        optimum)."""
+        best = optimum(self.methods(setup)[0].config())
+        return best, THRESHOLDS.get(setup, best)
 
     # ---- building blocks --------------------------------------------------------------------------------------
     def table(self, setup: str, against: str | None = None) -> None:
@@ -83,7 +77,7 @@ class Claims:
             cells = [m.fmt(3) for m in med] + [_count(reach_opt, n)]
             cells += [_count(reach_thr, n)] if thr != opt else []
             cells += [t.fmt(None), ", ".join("never" if np.isinf(q) else f"{q:,.0f}"
-                                             for q in stats.quartile_times(times))]
+                                             for q in quartile_times(times))]
             if base is not None:
                 tests = [stats.mann_whitney(self.values(r, w), self.values(base, w)) for w in ("final", f"time:{thr}")]
                 cells += ["-" if r is base else f"p{stats.format_p(x.p)}, P(a>b)={x.effect:.2f}" for x in tests]
@@ -129,7 +123,7 @@ class Claims:
             ratio = stats.ratio_ci(t1, t2)
             self.note("C2", "time_ratio", f"solo, median generations to 4, k=2 / k=1: {ratio.fmt(3)}",
                       ratio.as_dict())
-            q1, q2 = stats.quartile_times(t1), stats.quartile_times(t2)
+            q1, q2 = quartile_times(t1), quartile_times(t2)
             quart = [b / a if np.isfinite(a) and np.isfinite(b) else math.inf if np.isfinite(a) else math.nan
                      for a, b in zip(q1, q2, strict=True)]
             self.note("C2", "quartile_ratio", "solo, generations until 1/4, 1/2, 3/4 of the runs reach 4, k=2 / k=1: "
@@ -156,7 +150,7 @@ class Claims:
     def c7(self) -> None:
         self.lines += ["### C7: EXP3-adaptive against the best fixed k", ""]
         for setup in ("solo", "duo"):
-            thr = THRESHOLD[setup]
+            thr = THRESHOLDS[setup]
             fixed = [r for r in (self.get(setup, k) for k in FIXED) if r is not None]
             if not fixed or self.get(setup, "adaptive") is None:
                 continue

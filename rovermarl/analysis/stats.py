@@ -106,9 +106,3 @@ def mann_whitney(x, y) -> Test:
 def format_p(p: float) -> str:
     return "<1e-4" if p < 1e-4 else f"={p:.2g}"
 
-
-def quartile_times(times) -> list[float]:
-    """When 1/4, 1/2 and 3/4 of the runs had reached a level: the ceil(q n)-th smallest time, ``inf`` if fewer
-    runs ever got there (the paper's dotted lines)."""
-    t = np.sort(np.asarray(times, dtype=np.float64))
-    return [float(t[max(1, math.ceil(q * len(t) - 1e-9)) - 1]) for q in (0.25, 0.5, 0.75)]

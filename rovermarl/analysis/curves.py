@@ -1,0 +1,105 @@
+"""Score curves: the one reader of a run's ``curve.npz`` and of an exported job's ``curves.npz``.
+
+A run dir of a sweep holds ``curve.npz`` with the parent score after every generation (G+1,) and, for a bandit,
+the arm probabilities (G, K). An exported job dir (:mod:`rovermarl.analysis.results`) holds ``curves.npz``: every
+run's exact curve as change points (a parent score never falls, so these few points are lossless), the scores and
+bandit probabilities on a log grid.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+GRID_POINTS = 400
+
+
+def log_grid(generations: int, points: int = GRID_POINTS) -> np.ndarray:
+    """Generations 0 and about ``points`` log-spaced ones in [1, generations] (ints, both ends included)."""
+    top = max(int(generations), 1)
+    return np.unique(np.concatenate([[0], np.round(np.logspace(0, math.log10(top), points)).astype(np.int64)]))
+
+
+def change_points(score: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(generations, values) where the curve score (G+1,) takes a new value, generation 0 first."""
+    g = np.concatenate([[0], np.flatnonzero(np.diff(score) != 0) + 1])
+    return g, score[g]
+
+
+@dataclass
+class Curves:
+    """Every run's exact score curve of one job, from change points."""
+
+    seeds: np.ndarray            # (R,)
+    generations: int             # G
+    step_run: np.ndarray         # (S,) run index of each change point
+    step_generation: np.ndarray  # (S,)
+    step_score: np.ndarray       # (S,)
+
+    @classmethod
+    def from_scores(cls, seeds, scores: list[np.ndarray]) -> Curves:
+        parts = [change_points(s) for s in scores]
+        return cls(np.asarray(seeds), len(scores[0]) - 1,
+                   np.concatenate([np.full(len(g), i) for i, (g, _) in enumerate(parts)]),
+                   np.concatenate([g for g, _ in parts]), np.concatenate([v for _, v in parts]))
+
+    def run(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        m = self.step_run == i
+        return self.step_generation[m], self.step_score[m]
+
+    def at(self, generations) -> np.ndarray:
+        """Scores at the given generations: (R, len(generations))."""
+        generations = np.atleast_1d(np.asarray(generations))
+        out = np.empty((len(self.seeds), len(generations)))
+        for i in range(len(self.seeds)):
+            g, v = self.run(i)
+            out[i] = v[np.searchsorted(g, generations, side="right") - 1]
+        return out
+
+    def full(self, i: int) -> np.ndarray:
+        """Run ``i``'s score after every generation: (G+1,)."""
+        g, v = self.run(i)
+        return np.repeat(v, np.diff(np.append(g, self.generations + 1)))
+
+    def first(self, level: float) -> np.ndarray:
+        """First generation each run reaches ``level``: (R,) float, ``inf`` for never."""
+        out = np.full(len(self.seeds), np.inf)
+        for i in range(len(self.seeds)):
+            g, v = self.run(i)
+            hit = np.flatnonzero(v >= level - 1e-9)
+            if hit.size:
+                out[i] = g[hit[0]]
+        return out
+
+
+@dataclass
+class Exported:
+    """The content of an exported job's ``curves.npz``."""
+
+    curves: Curves
+    grid: np.ndarray            # (M,) log-spaced generations
+    probs: np.ndarray | None    # (R, M, K) float32 bandit arm probabilities on the grid, None for fixed k
+
+
+def read_exported(job_dir: Path) -> Exported:
+    """Read ``job_dir/curves.npz`` of an exported job."""
+    with np.load(Path(job_dir) / "curves.npz") as z:
+        curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
+        return Exported(curves, z["grid"], z["probs"] if "probs" in z.files else None)
+
+
+def read_run_curve(run_dir: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """(score (G+1,), probs (G, K) or None for fixed k) of a sweep's run dir, as float64."""
+    with np.load(Path(run_dir) / "curve.npz") as curve:
+        score = np.asarray(curve["score"], dtype=np.float64)
+        probs = np.asarray(curve["probs"], dtype=np.float64) if "probs" in curve.files else None
+    return score, probs
+
+
+def read_run_arrays(run_dir: Path) -> dict[str, np.ndarray]:
+    """Every array of a sweep's run ``curve.npz`` (score, k, accepted, child_score, and what else was recorded)."""
+    with np.load(Path(run_dir) / "curve.npz") as curve:
+        return {key: curve[key] for key in curve.files}

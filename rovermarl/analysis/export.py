@@ -1,0 +1,184 @@
+"""Export the compact results of a sweep (``python -m rovermarl.analysis export SWEEP_DIR RESULTS_DIR``): the
+format is described in :mod:`rovermarl.analysis.results`."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+
+from rovermarl.analysis.curves import GRID_POINTS, Curves, change_points, log_grid, read_run_arrays
+from rovermarl.analysis.rerun import mutated_rovers
+from rovermarl.analysis.results import COUPLING_KINDS, ResultsError
+from rovermarl.analysis.sweep import Job, fig6_job, find_jobs, labels
+from rovermarl.record.outputs import atomic_open, write_json
+
+
+def coupling(curve, episodes: int) -> dict | None:
+    """The phenotypic-coupling measure of one run, over its generations that mutated exactly one rover:
+    for accepted updates that raised the score (``improved``), accepted ones that kept it (``neutral``) and
+    rejected ones: how many there were, the mean share of episodes in which another rover changed its final POI
+    (``share``), and the fraction of updates with at least one such episode (``any``). None without data."""
+    if "switched" not in curve:
+        return None
+    k, acc, sw = curve["k"], curve["accepted"], curve["switched"].astype(np.float64)
+    parent_before = curve["score"][:-1]
+    single = (k == 1) & (sw >= 0)
+    if not single.any():
+        return None
+    rose = curve["child_score"] > parent_before
+    out = {}
+    masks = (single & acc & rose, single & acc & ~rose, single & ~acc)
+    for kind, mask in zip(COUPLING_KINDS, masks, strict=True):
+        n = int(mask.sum())
+        out[kind] = {"n": n, "share": float(sw[mask].mean() / episodes) if n else None,
+                     "any": float((sw[mask] > 0).mean()) if n else None}
+    return out
+
+
+def _compute(job: Job) -> dict:
+    """Team evaluations and wall time of every launch of the job (``invocations.jsonl``; else summary.json)."""
+    log = job.path / "invocations.jsonl"
+    launches = [json.loads(x) for x in log.read_text().splitlines() if x.strip()] if log.is_file() else []
+    if not launches:                                                     # jobs run before the log existed
+        summary = json.loads((job.path / "summary.json").read_text())
+        launches = [{"wall_time_s": summary.get("wall_time_s", 0.0), "team_evals": summary.get("team_evals", 0)}]
+    return {"launches": len(launches), "wall_time_s": sum(x["wall_time_s"] for x in launches),
+            "team_evals": sum(x["team_evals"] for x in launches)}
+
+
+def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) -> dict:
+    """Write one job's compact results into ``out``; returns its summary."""
+    runs = sorted(job.runs, key=lambda r: r.seed)
+    lengths = {len(r.score) for r in runs}
+    if len(lengths) != 1:
+        raise ResultsError(f"{job.path}: runs of different lengths {sorted(lengths)}; finish the job first")
+    curves = Curves.from_scores([r.seed for r in runs], [r.score for r in runs])
+    grid = log_grid(curves.generations, grid_points)
+    arrays = {"seed": curves.seeds, "generations": np.int64(curves.generations), "grid": grid,
+              "score": curves.at(grid), "step_run": curves.step_run.astype(np.int32),
+              "step_generation": curves.step_generation, "step_score": curves.step_score}
+    if job.bandit:
+        arrays["probs"] = np.stack([r.probs[np.minimum(grid, len(r.probs) - 1)] for r in runs]).astype(np.float32)
+    world = job.world()
+    if world is None:
+        raise ResultsError(f"{job.path}: cannot build the world from its config")
+    episodes = world.episodes
+    couplings = {}
+    for r in runs:
+        c = coupling(read_run_arrays(r.path), episodes)
+        if c is not None:
+            couplings[str(r.seed)] = c
+    summary = json.loads((job.path / "summary.json").read_text()) if job.finished else {}
+    compute = _compute(job)
+    compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
+    summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
+                    "episodes": episodes, "source": job.name, "compute": compute})
+    if couplings:
+        summary["coupling"] = couplings
+    out.mkdir(parents=True, exist_ok=True)
+    with atomic_open(out / "curves.npz") as f:
+        np.savez_compressed(f, **arrays)
+    with atomic_open(out / "config.yaml", "w") as f:
+        f.write(OmegaConf.to_yaml(OmegaConf.create(job.config)))
+    write_json(out / "summary.json", summary)
+    return summary
+
+
+def export(sweep: Path, out: Path, generations: int | None = None, grid_points: int = GRID_POINTS,
+           fig6: bool = True, log=print) -> dict:
+    """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``."""
+    jobs, notes = find_jobs(sweep)
+    jobs = [j for j in jobs if j.finished and (generations is None or len(j.runs[0].score) == generations + 1)]
+    if not jobs:
+        raise ResultsError(f"no finished job in {sweep}" + (f" with generations={generations}" if generations else ""))
+    out = Path(out)
+    totals = {"jobs": {}, "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
+    named = {}
+    for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
+        group = [j for j in jobs if j.setup == setup]
+        named.update(zip((j.name for j in group), labels(group), strict=True))
+    for job in jobs:
+        label = named[job.name]
+        summary = export_job(job, label, out / job.name, grid_points)
+        totals["jobs"][job.name] = summary["compute"]
+        totals["team_evals"] += summary["compute"]["team_evals"]
+        totals["wall_time_s"] += summary["compute"]["wall_time_s"]
+        totals["agent_steps"] += summary["compute"]["agent_steps"]
+        log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
+    write_json(out / "compute.json", totals)
+    if fig6 and (job := fig6_job(jobs)) is not None:
+        info = export_fig6(job, out / "fig6.npz")
+        log(f"fig6: {info}")
+    for note in notes:
+        log(f"note: {note}")
+    return totals
+
+
+# ---- Fig. 6 data ---------------------------------------------------------------------------------------------------
+FIG6_LEVELS = (4.0 + 1 / 16, 5.0)  # the first update past the all-solo level 4, and the first to reach 5
+
+
+def _crossings(generation: np.ndarray, score: np.ndarray, levels=FIG6_LEVELS) -> list[int]:
+    """Indices of the behaviour entries where the score first reaches each level (the 'after' entry), in
+    increasing order, each once (one update can cross several levels)."""
+    out = set()
+    for level in levels:
+        hit = np.flatnonzero((score[1:] >= level) & (score[:-1] < level))
+        if hit.size:
+            out.add(int(hit[0]) + 1)
+    return sorted(out)
+
+
+def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS) -> dict:
+    """The data of a Fig. 6-style figure for one run of ``job`` (default: the best final score, earliest first):
+    its score change points, the occupancy of one episode over generations, and the team's trajectories just
+    before and after the updates that first lift the score to each of ``levels`` (by default: past 4, the
+    all-solo level, in one more episode; and to 5, a duo POI in every episode), with the rover each update changed
+    (found by re-running the run, which must reproduce the recorded scores)."""
+    runs = [r for r in job.runs if (r.path / "behaviour.npz").is_file() and (r.path / "occupancy.npz").is_file()]
+    if not runs:
+        raise ResultsError(f"{job.path}: no run recorded behaviour.npz and occupancy.npz")
+    curves = Curves.from_scores([r.seed for r in runs], [r.score for r in runs])
+    if run_seed is None:
+        best = max(r.score[-1] for r in runs)
+        first = curves.first(best)
+        run = runs[int(np.argmin(first))]
+    else:
+        run = next((r for r in runs if r.seed == run_seed), None)
+        if run is None:
+            raise ResultsError(f"{job.path}: no recorded run with seed {run_seed}")
+    with np.load(run.path / "behaviour.npz") as b:
+        generation, score, xy = b["generation"], b["score"], b["xy"]
+    with np.load(run.path / "occupancy.npz") as o:
+        occ_generation, count = o["generation"], o["count"]
+    after = _crossings(generation, score, levels)
+    events = [(i - 1, i) for i in after]        # the 'before' entry is the parent team of the 'after' generation
+    replayed = mutated_rovers(job.config, run.seed, [int(generation[i]) for _, i in events])  # in generation order
+    for (_, i), (_, parent_score, accepted) in zip(events, replayed, strict=True):
+        if parent_score != score[i] or not accepted:
+            raise ResultsError(f"{run.path}: re-running seed {run.seed} does not reproduce generation "
+                               f"{int(generation[i])}")
+    mutated = [m for m, _, _ in replayed]
+    final_count = count[-1]                                              # (E, P): pick an episode that ends best
+    world = job.world()
+    returns = (final_count >= np.asarray(world.coupling)) @ np.asarray(world.value)
+    best_eps = np.flatnonzero(returns == returns.max())
+    changes = [(np.diff(count[:, e], axis=0) != 0).any(axis=1).sum() for e in best_eps]
+    episode = int(best_eps[int(np.argmax(changes))])
+    idx = [i for pair in events for i in pair]
+    steps = change_points(run.score)
+    arrays = {"seed": np.int64(run.seed), "generations": np.int64(len(run.score) - 1),
+              "step_generation": steps[0], "step_score": steps[1],
+              "episode": np.int64(episode), "occupancy_generation": occ_generation,
+              "occupancy": count[:, episode], "event_generation": generation[idx].reshape(-1, 2),
+              "event_score": score[idx].reshape(-1, 2), "event_xy": xy[idx].reshape(len(events), 2, *xy.shape[1:]),
+              "event_mutated": np.array([m[0] if len(m) == 1 else -1 for m in mutated], dtype=np.int64),
+              "coupling": np.asarray(world.coupling), "value": np.asarray(world.value)}
+    with atomic_open(path) as f:
+        np.savez_compressed(f, **arrays)
+    return {"job": job.name, "seed": run.seed, "episode": episode,
+            "events": [[int(generation[a]), int(generation[b])] for a, b in events],
+            "mutated_rover": arrays["event_mutated"].tolist()}

@@ -1,0 +1,235 @@
+"""Reading a sweep: its job dirs, their runs' score curves, and the labels that tell the methods apart.
+
+A sweep dir holds job dirs, each with ``summary.json``, ``.hydra/`` and ``runs/seed_XXX/curve.npz`` (plus, when
+recorded, ``behaviour.npz`` and ``occupancy.npz``). A results dir of :mod:`rovermarl.analysis.export` reads the same
+way: its job dirs hold ``summary.json``, ``config.yaml`` and ``curves.npz``.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from omegaconf import OmegaConf
+
+from rovermarl.analysis.curves import read_exported, read_run_curve
+from rovermarl.analysis.levels import setup_rank
+from rovermarl.env import World, make_world
+
+# Config keys that never tell two methods apart: where and how a job runs, and the setup (figures group by it).
+# :meth:`Job.keyed_overrides` drops them, so that labels name only what differs in the method. Kept by hand: a
+# job's overrides do not say which keys only affect how it runs (conf/config.yaml's override_dirname.exclude_keys
+# is the nearest list, but it also drops `seeds` and is not in exported results).
+NOT_METHOD = ("parallel", "ray", "hydra", "setup", "record", "checkpoint", "resume")
+
+
+class SweepError(Exception):
+    """A path that holds no readable sweep, job or run; ``str(err)`` is one line."""
+
+
+@dataclass
+class RunCurve:
+    """One run of a job: its dir, seed and score curve (and bandit probabilities)."""
+
+    path: Path
+    seed: int
+    score: np.ndarray  # (G+1,) parent score after each generation
+    probs: np.ndarray | None  # (G, K) bandit arm probabilities, None for fixed k
+    probs_x: np.ndarray | None = None  # generations of the rows of probs (exported results), None: 0..G-1
+
+    def has(self, name: str) -> bool:
+        return (self.path / name).is_file()
+
+
+@dataclass
+class Job:
+    """One job dir: a config (setup x method) and its runs."""
+
+    path: Path
+    choices: dict  # config group -> option name
+    config: dict  # composed config (plain, unresolved)
+    overrides: list[str]  # command-line overrides, quotes removed
+    runs: list[RunCurve]
+    finished: bool  # summary.json present
+
+    @property
+    def name(self) -> str:
+        return self.path.name
+
+    @property
+    def setup(self) -> str:
+        return str(self.choices.get("setup") or (self.config.get("setup") or {}).get("name") or "default")
+
+    @property
+    def strict(self) -> bool:
+        selection = self.config.get("selection") or {}
+        return bool(selection.get("strict", self.choices.get("selection") == "strict"))
+
+    @property
+    def bandit(self) -> bool:
+        return any(r.probs is not None for r in self.runs)
+
+    @property
+    def homogeneous(self) -> bool:
+        target = str((self.config.get("team") or {}).get("_target_", ""))
+        return self.choices.get("team") == "homogeneous" or target.endswith("HomogeneousTeam")
+
+    @property
+    def k_name(self) -> str:
+        """``k=2`` for a fixed k, else the k option name (``adaptive``)."""
+        option = self.choices.get("k")
+        k_cfg = self.config.get("k") or {}
+        if option is None:
+            option = k_cfg.get("value") if "value" in k_cfg else str(k_cfg.get("_target_", "k")).rsplit(".")[-1]
+        return f"k={option}" if re.fullmatch(r"\d+", str(option)) else str(option)
+
+    @property
+    def base_label(self) -> str:
+        return "homogeneous" if self.homogeneous else self.k_name
+
+    @property
+    def label(self) -> str:
+        """The method on its own: ``base_label``, plus `` strict`` for strict selection."""
+        return self.base_label + (" strict" if self.strict else "")
+
+    def sort_key(self) -> tuple:
+        k = self.k_name
+        kind = 1 if self.homogeneous else 0 if k.startswith("k=") else 2
+        value = int(k[2:]) if kind == 0 else 0
+        return setup_rank(self.setup), self.setup, kind, value, k, self.strict, self.name
+
+    def keyed_overrides(self) -> set[str]:
+        """``key=value`` items that may tell this job from another of the same setup."""
+        items = set(self.overrides) | {f"{g}={o}" for g, o in self.choices.items()}
+        return {i for i in items if i.split("=", 1)[0].split(".")[0].lstrip("+~") not in NOT_METHOD}
+
+    def arms(self, n_arms: int) -> list[int]:
+        k_cfg, env = self.config.get("k") or {}, self.config.get("env") or {}
+        arms = k_cfg.get("arms") or list(range(1, int(env.get("n_rovers", n_arms)) + 1))
+        return [int(a) for a in arms] if len(arms) == n_arms else list(range(1, n_arms + 1))
+
+    def world(self):
+        """The job's :class:`~rovermarl.env.World` from its config, or None if it cannot be built."""
+        for build in (lambda: World.from_config(OmegaConf.create(self.config)), lambda: make_world(self.setup)):
+            try:
+                return build()
+            except Exception:  # an odd config only costs the trajectory figures
+                pass
+        return None
+
+
+def _read_yaml(path: Path):
+    try:
+        return OmegaConf.to_container(OmegaConf.load(path), resolve=False) if path.is_file() else None
+    except Exception:  # a broken yaml is treated as missing
+        return None
+
+
+def _read_json(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text()) if path.is_file() else None
+    except (OSError, ValueError):
+        return None
+
+
+def load_run(run_dir: Path) -> RunCurve:
+    score, probs = read_run_curve(run_dir)
+    match = re.search(r"(\d+)$", run_dir.name)
+    return RunCurve(run_dir, int(match[1]) if match else -1, score, probs)
+
+
+def _exported_runs(path: Path) -> list[RunCurve]:
+    """The runs of an exported job dir: exact curves, probs on the grid."""
+    e = read_exported(path)
+    if e.probs is None:
+        return [RunCurve(path, int(seed), e.curves.full(i), None) for i, seed in enumerate(e.curves.seeds)]
+    return [RunCurve(path, int(seed), e.curves.full(i), e.probs[i].astype(np.float64), e.grid)
+            for i, seed in enumerate(e.curves.seeds)]
+
+
+def load_job(path: Path, notes: list[str]) -> Job | None:
+    """Read one job dir (finished or not, or exported); None, with a note, if it has no readable run."""
+    summary = _read_json(path / "summary.json")
+    if (path / "curves.npz").is_file():
+        return Job(path, dict(summary.get("choices") or {}), _read_yaml(path / "config.yaml") or {}, [],
+                   _exported_runs(path), True)
+    hydra_dir = path / ".hydra"
+    choices = dict((summary or {}).get("choices") or {})
+    if not choices:
+        runtime = ((_read_yaml(hydra_dir / "hydra.yaml") or {}).get("hydra") or {}).get("runtime") or {}
+        choices = {g: o for g, o in (runtime.get("choices") or {}).items() if "/" not in g and o is not None}
+    overrides = [str(o).replace("'", "").replace('"', "") for o in _read_yaml(hydra_dir / "overrides.yaml") or []]
+    runs = []
+    for run_dir in sorted((path / "runs").glob("seed_*")):
+        if not (run_dir / "curve.npz").is_file():
+            continue
+        try:
+            runs.append(load_run(run_dir))
+        except Exception as e:  # a half-written or corrupt file skips that run only
+            notes.append(f"{run_dir}: unreadable curve.npz ({type(e).__name__}); run skipped")
+    if not runs:
+        notes.append(f"{path.name}: no finished run yet; job skipped")
+        return None
+    config = _read_yaml(hydra_dir / "config.yaml") or _read_yaml(path / "config.yaml") or {}  # CLI, or library use
+    job = Job(path, choices, config, overrides, runs, summary is not None)
+    expected = len((summary or {}).get("seeds") or []) or job.config.get("seeds")
+    if not job.finished or (expected and len(runs) < expected):
+        state = "finished" if job.finished else "unfinished"
+        notes.append(f"{path.name}: {state}; plotting the {len(runs)} of {expected or '?'} runs present")
+    return job
+
+
+def find_jobs(path: Path) -> tuple[list[Job], list[str]]:
+    """All job dirs under ``path`` (a sweep dir or one job dir), sorted by setup then method; plus notes."""
+    path = Path(path)
+    if not path.exists():
+        raise SweepError(f"no such directory: {path}")
+    if not path.is_dir():
+        raise SweepError(f"not a directory: {path}")
+    if not any(path.iterdir()):
+        raise SweepError(f"empty directory: {path}")
+    dirs = {p.parent for p in path.rglob("summary.json")}
+    dirs |= {p.parent.parent.parent for p in path.rglob("runs/seed_*/curve.npz")}
+    if not dirs:
+        raise SweepError(f"no job under {path} (no summary.json, runs/seed_*/curve.npz or exported curves.npz)")
+    notes: list[str] = []
+    jobs = [job for d in sorted(dirs) if (job := load_job(d, notes)) is not None]
+    if not jobs:
+        raise SweepError(f"no readable run under {path} ({len(dirs)} job dirs, none with a runs/seed_*/curve.npz)")
+    return sorted(jobs, key=Job.sort_key), notes
+
+
+def labels(jobs: Sequence[Job]) -> list[str]:
+    """Unique method labels: ``k=1``, ``homogeneous``, ``adaptive``; `` strict`` when soft and strict are mixed,
+    then the distinguishing overrides (or the job dir) when two jobs would still share a label."""
+    mixed = len({j.strict for j in jobs}) > 1
+    out = [j.base_label + (" strict" if mixed and j.strict else "") for j in jobs]
+    for label in set(out):
+        same = [i for i, lab in enumerate(out) if lab == label]
+        if len(same) > 1:
+            keyed = [jobs[i].keyed_overrides() for i in same]
+            common = set.intersection(*keyed)
+            for i, items in zip(same, keyed, strict=True):
+                extra = sorted(items - common - {f"selection={'strict' if jobs[i].strict else 'soft'}"})
+                out[i] = f"{label} ({', '.join(extra)})" if extra else label
+    if len(set(out)) < len(out):
+        out = [f"{lab} [{j.name}]" if out.count(lab) > 1 else lab for lab, j in zip(out, jobs, strict=True)]
+    return out
+
+
+def soft_strict_pairs(jobs: Sequence[Job]) -> list[tuple[Job, Job]]:
+    """(soft, strict) jobs that differ only in selection."""
+    def key(job: Job) -> frozenset:
+        return frozenset(i for i in job.keyed_overrides() if not i.startswith("selection"))
+    soft = {key(j): j for j in jobs if not j.strict}
+    return [(soft[key(j)], j) for j in jobs if j.strict and key(j) in soft]
+
+
+def fig6_job(jobs: Sequence[Job]) -> Job | None:
+    """The job whose run the Fig. 6 data shows (see :func:`rovermarl.analysis.export.export_fig6`): the first soft
+    duo k=1 job."""
+    return next((j for j in jobs if j.setup == "duo" and j.label == "k=1"), None)
