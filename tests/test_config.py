@@ -111,3 +111,19 @@ def test_a_job_builds_its_world_and_algorithm_once(tmp_path, monkeypatch):
                 f"hydra.sweep.dir={tmp_path / 'sweep'}", "hydra.callbacks={}"])
     assert len(list((tmp_path / "sweep").glob("*/runs/*/run.json"))) == 4
     assert len(calls) == 2                                        # one per job
+
+
+def test_configs_from_before_the_algorithm_group_still_build_and_give_the_same_run():
+    """Sweeps of rovermarl <= 4c4ae3c: no `algorithm` node, operators under rovermarl.evolution."""
+    from omegaconf import OmegaConf
+
+    from rovermarl.runner import Run
+    new = make_cfg("k=adaptive", "setup=duo", "generations=40", "record=off")
+    old = OmegaConf.create(OmegaConf.to_container(new))
+    del old["algorithm"]
+    for group in ("k", "selection", "team", "mutation"):
+        old[group]["_target_"] = old[group]["_target_"].replace("rovermarl.algorithms.operators.",
+                                                                "rovermarl.evolution.")
+    a, b = Run(new, seed=3).advance(40), Run(old, seed=3).advance(40)
+    for key in a:
+        np.testing.assert_array_equal(a[key], b[key])

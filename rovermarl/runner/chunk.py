@@ -19,6 +19,7 @@ from rovermarl import errors
 from rovermarl.algorithms.base import Algorithm, build_operator
 from rovermarl.env import World
 from rovermarl.record.events import BehaviourObserver
+from rovermarl.resources import CONF_DIR
 
 EvaluationFactory = Callable[[World, tuple, bool], "Evaluation"]
 
@@ -34,7 +35,7 @@ class Parts:
 
 def build(cfg) -> Parts:
     """World and algorithm of a composed config (a ``DictConfig`` or plain dict); bad values raise ConfigError."""
-    cfg = cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg)
+    cfg = upgrade(cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg))
     world = World.from_config(cfg)
     try:
         algorithm = build_operator(cfg.get("algorithm"), "algorithm", world=world)
@@ -46,6 +47,21 @@ def build(cfg) -> Parts:
                                  "must name a subclass of rovermarl.algorithms.Algorithm")
     record = OmegaConf.to_container(cfg.record, resolve=True) if "record" in cfg else {}
     return Parts(world, algorithm, record)
+
+
+def upgrade(cfg: DictConfig) -> DictConfig:
+    """A config written by rovermarl before the ``algorithm`` group (up to commit 4c4ae3c), as it reads today: its
+    operators' targets moved from ``rovermarl.evolution`` to ``rovermarl.algorithms.operators``, and CC-(1+1)-ES
+    was the only algorithm. Other configs are returned as they are."""
+    if "algorithm" in cfg or "k" not in cfg:
+        return cfg
+    cfg = cfg.copy()
+    for group in ("k", "selection", "team", "mutation"):
+        target = OmegaConf.select(cfg, f"{group}._target_")
+        if isinstance(target, str) and target.startswith("rovermarl.evolution."):
+            cfg[group]["_target_"] = target.replace("rovermarl.evolution.", "rovermarl.algorithms.operators.", 1)
+    cfg.algorithm = OmegaConf.load(CONF_DIR / "algorithm" / "cc11es.yaml")
+    return cfg
 
 
 _CACHE: dict[str, Parts] = {}                         # per process: the built parts of each config
