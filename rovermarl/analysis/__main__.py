@@ -17,6 +17,7 @@ from pathlib import Path
 
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
+from rovermarl.errors import ConfigError
 
 PROG = "rovermarl.analysis"
 
@@ -58,7 +59,7 @@ def main(argv=None) -> None:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against)
             print(text, end="")
-    except (ResultsError, SweepError) as e:
+    except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config that cannot be rebuilt
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
 
