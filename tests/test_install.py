@@ -68,6 +68,7 @@ def test_wheel_holds_the_code_and_the_config_groups(wheel):
     assert code - names == set()
     assert {f"rovermarl/conf/{f}" for f in CONF_FILES} - names == set()
     assert not [n for n in names if n.startswith("conf/") or n.startswith("tests/")]
+    assert f"rovermarl-{PYPROJECT['project']['version']}.dist-info/licenses/LICENSE" in names
 
 
 def test_installed_wheel_finds_its_packaged_configs_from_an_empty_dir(wheel, tmp_path):
