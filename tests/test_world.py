@@ -196,3 +196,12 @@ def test_four_rover_start_squares_are_the_quadrants():
     w = make_world("solo")
     np.testing.assert_allclose(w.start_squares[:, 2], [[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
     np.testing.assert_allclose(w.start_rotation, np.arange(4) * np.pi / 2)
+
+
+def test_non_finite_targets_read_as_out_of_range(solo):
+    """One sensor encoding for World.observe and the rollout: a target at a NaN or infinite distance reads [1, 0, 0]."""
+    xy = np.zeros((4, 2))
+    xy[1], xy[2] = [np.nan, 0.0], [np.inf, 0.0]
+    obs = solo.observe(xy, np.zeros(4))
+    np.testing.assert_array_equal(obs[1, :3], [1, 0, 0])          # a rover at NaN sees no POI
+    np.testing.assert_array_equal(obs[0, 32:36], [1, 0, 1, 0])    # rovers 1 and 2 seen from rover 0

@@ -8,7 +8,9 @@ The public stages take batch-first arrays (``xy (E, N, 2)``, ``heading (E, N)``,
 gives the rollout's numbers bit for bit. The flat layout keeps the (rover, episode) pairs ``q = i*E + e`` rover-major
 in (N*E,) arrays, and observations feature-major in (D*N*E,) (feature k of pair q at ``k*N*E + q``), so that the
 loops over episodes are contiguous and LLVM vectorises them. Indices there are unsigned (``U``): numba then emits
-no negative-index wraparound, which blocks vectorisation.
+no negative-index wraparound, which blocks vectorisation. The small flat functions are inlined (``inline="always"``:
+no per-call array reference counting in the step loop); inlined code takes its caller's compile options, so every
+caller of ``act_flat``/``move_flat`` is ``FAST``.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ U = np.uint64
 
 # ---- batch-first stages ------------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(**FAST)
 def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
     """Observations of all rovers of all episodes: xy (E, N, 2), heading (E, N), poi_xy (P, 2), poi_type (P,)
     -> out (E, N, D).
@@ -58,7 +60,7 @@ def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
         from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
 
 
-@njit(cache=True)
+@njit(**FAST)
 def act(genomes, obs, hidden, out):
     """Actions of a team over a batch of episodes: genomes (N, G) one row per rover, obs (E, N, D) -> out (E, N, 2),
     the two tanh outputs ``(a0, a1)`` of each rover's MLP (D -> H -> 2, tanh on both layers; SPEC section 4).
@@ -83,7 +85,7 @@ def act(genomes, obs, hidden, out):
     from_flat(a[1], out[:, :, 1])
 
 
-@njit(cache=True)
+@njit(**FAST)
 def move(xy, heading, actions, v_max, w_max):
     """One step of motion, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2). Each rover turns by
     :func:`turn` first, then moves :func:`speed` along its new heading.
@@ -111,7 +113,7 @@ def move(xy, heading, actions, v_max, w_max):
     from_flat(h, heading)
 
 
-@njit(cache=True)
+@njit(inline="always", cache=True)
 def observers(xy, poi_xy, radius, out):
     """Rovers observing each POI: out[e, j] += rovers of episode e :func:`within` ``radius`` of POI j.
     xy (E, N, 2), poi_xy (P, 2), out (E, P) integers.
@@ -131,7 +133,7 @@ def observers(xy, poi_xy, radius, out):
                     out[e, j] += 1
 
 
-@njit(cache=True)
+@njit(inline="always", cache=True)
 def payout(count, coupling, value, out):
     """The reward rule: out[e] = sum over POIs j (in index order) of ``value[j]`` if ``count[e, j] >= coupling[j]``.
     count (E, P) observers, coupling (P,), value (P,) -> out (E,).
@@ -199,7 +201,7 @@ def sense_libm(xy, heading, poi_xy, poi_type, sensor_range, out):
 
 # ---- flat layout: the loops of the fused rollout -----------------------------------------------------------------
 
-@njit(cache=True)
+@njit(inline="always", cache=True)
 def to_flat(a, out):
     """a (E, N) -> out (N*E,) rover-major: ``out[i*E + e] = a[e, i]``."""
     n_ep, n = a.shape
@@ -208,7 +210,7 @@ def to_flat(a, out):
             out[i * n_ep + e] = a[e, i]
 
 
-@njit(cache=True)
+@njit(inline="always", cache=True)
 def from_flat(v, out):
     """v (N*E,) rover-major -> out (E, N): ``out[e, i] = v[i*E + e]``."""
     n_ep, n = out.shape
@@ -256,7 +258,7 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
                 obs[o + q], obs[o + U(ne) + q], _ = reading(d, sensor_range, d * inv_range, b * inv_pi, 0.0)
 
 
-@njit(**FAST)
+@njit(inline="always", **FAST)
 def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
     hid (H*E,) and rows (D,) int64 are scratch."""
@@ -266,7 +268,7 @@ def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
         _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
 
 
-@njit(**FAST)
+@njit(inline="always", **FAST)
 def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max):
     """:func:`move` in the flat layout, in place: all arrays (N*E,); sin_h, cos_h follow the new heading."""
     ne = x.shape[0]
@@ -316,7 +318,25 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
         o1 = U(k1 * ne + q0)
         o2 = U(k2 * ne + q0)
         o3 = U(k3 * ne + q0)
-        for u in range(hidden):
+        for u in range(0, hidden - 1, 2):          # two hidden units per pass: twice the independent FMA chains
+            w0 = genome[U(k0 * hidden + u)]
+            w1 = genome[U(k1 * hidden + u)]
+            w2 = genome[U(k2 * hidden + u)]
+            w3 = genome[U(k3 * hidden + u)]
+            x0 = genome[U(k0 * hidden + u + 1)]
+            x1 = genome[U(k1 * hidden + u + 1)]
+            x2 = genome[U(k2 * hidden + u + 1)]
+            x3 = genome[U(k3 * hidden + u + 1)]
+            ou = U(u * ep)
+            ov = U((u + 1) * ep)
+            for e in range(ep):
+                i = U(e)
+                hid[ou + i] = (((hid[ou + i] + obs[o0 + i] * w0) + obs[o1 + i] * w1)
+                               + obs[o2 + i] * w2) + obs[o3 + i] * w3
+                hid[ov + i] = (((hid[ov + i] + obs[o0 + i] * x0) + obs[o1 + i] * x1)
+                               + obs[o2 + i] * x2) + obs[o3 + i] * x3
+        if hidden % 2 == 1:                            # odd H: the last unit alone
+            u = hidden - 1
             w0 = genome[U(k0 * hidden + u)]
             w1 = genome[U(k1 * hidden + u)]
             w2 = genome[U(k2 * hidden + u)]
