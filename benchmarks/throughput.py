@@ -4,14 +4,17 @@
 
     python benchmarks/throughput.py [--setup solo] [--repeats 7] [--evals 3000] [--numpy-evals 150]
 
-The kernel and the old kernel get the same arguments (one team, the world's starts). In each repeat they run
-alternately in ``--chunks`` chunks, so that machine noise hits both alike; ``kernel_over_old`` is the median of the
-per-repeat ratios of their rates (above 1: the kernel is faster). Their returns, trajectories and final positions
-are compared bit for bit on ``--check-teams`` random teams and starts (``kernel_equals_old``). ``World.evaluate``,
-the loop and the numpy reference are measured alternately too; the reference's per-episode returns are checked
-against the kernel's (``numpy_return_mismatches`` counts differing episodes).
+The kernel and the old kernel get the same arguments (one team, the world's starts) and are checked bit for bit on
+``--check-teams`` random teams and starts (returns, trajectories, final positions: ``kernel_equals_old``). Their
+speeds are compared in ``--processes`` fresh processes, one after the other, loading the kernels in alternating order:
+where the JIT places the code alone moves a kernel's speed by a few percent, so ``old_copy`` (the old kernel's code
+loaded a second time) is timed as an A/A control (``old_copy_over_old``). In each repeat of each process the three run
+in rotating order in ``--chunks`` chunks, so that machine noise hits them alike; ``kernel_over_old`` is the median of
+the per-repeat ratios of rates (above 1: the new kernel is faster). ``World.evaluate``, the generation loop and the
+numpy reference are measured alternately in this process; the reference's per-episode returns are checked against the
+kernel's (``numpy_return_mismatches`` counts differing episodes).
 
-Rates count the process CPU time, which a shared, oversubscribed machine inflates less than wall time
+Rates count process CPU time, which a shared, oversubscribed machine inflates less than wall time
 (``kernel_over_old_wall`` is the kernel ratio in wall time).
 """
 
@@ -22,10 +25,13 @@ import json
 import os
 import platform
 import statistics
+import subprocess
+import sys
 import time
 
 import kernel_4c4ae3c as old_kernel  # same folder
 import numpy as np
+from numba import njit
 
 from rovermarl import make_world
 from rovermarl.config import compose_config
@@ -62,18 +68,39 @@ def kernel_seconds(rollout, args, n: int) -> np.ndarray:
     return np.array([time.process_time() - c, time.perf_counter() - w])
 
 
-def kernel_vs_old(args, n: int, chunks: int, first_new: bool) -> tuple[np.ndarray, np.ndarray]:
-    """Rates [per CPU second, per wall second] of the kernel and of the old kernel, alternating in ``chunks``."""
-    new_s, old_s = np.zeros(2), np.zeros(2)
-    per = max(1, n // chunks)
-    for c in range(chunks):
-        if (c % 2 == 0) == first_new:
-            new_s += kernel_seconds(kernel.rollout, args, per)
-            old_s += kernel_seconds(old_kernel.rollout, args, per)
-        else:
-            old_s += kernel_seconds(old_kernel.rollout, args, per)
-            new_s += kernel_seconds(kernel.rollout, args, per)
-    return per * chunks / new_s, per * chunks / old_s
+def kernel_worker(a) -> None:
+    """One fresh process: load the kernels in ``--load-order``, then time them in rotating order; print JSON."""
+    kernels = {"new": kernel.rollout, "old": old_kernel.rollout,
+               "old_copy": njit(**old_kernel._FAST)(old_kernel.rollout.py_func)}   # A/A: same code, other address
+    args = kernel_inputs(make_world(a.setup))
+    order = a.load_order.split(",")
+    for name in order:
+        run_kernel(kernels[name], args, record=False)                   # JIT cache load, in this order
+    per = max(1, a.evals // a.chunks)
+    out = {name: [] for name in kernels}
+    for r in range(a.repeats):
+        total = {name: np.zeros(2) for name in kernels}
+        for c in range(a.chunks):
+            shift = (r + c) % len(order)
+            for name in order[shift:] + order[:shift]:
+                total[name] += kernel_seconds(kernels[name], args, per)
+        for name in kernels:
+            out[name].append((per * a.chunks / total[name]).tolist())        # [per CPU s, per wall s]
+    print(json.dumps(out))
+
+
+def kernel_vs_old(a) -> dict[str, np.ndarray]:
+    """Rates (R, 2) [per CPU s, per wall s] of new, old and old_copy over ``--processes`` fresh processes (in turn,
+    the load order alternating: code placement alone moves a kernel's speed by a few percent)."""
+    rates = {"new": [], "old": [], "old_copy": []}
+    for i in range(a.processes):
+        order = "new,old,old_copy" if i % 2 == 0 else "old_copy,old,new"
+        cmd = [sys.executable, __file__, "--kernel-worker", "--load-order", order, "--setup", a.setup,
+               "--repeats", str(a.repeats), "--evals", str(a.evals), "--chunks", str(a.chunks)]
+        out = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+        for name in rates:
+            rates[name] += out[name]
+    return {name: np.array(r) for name, r in rates.items()}
 
 
 def old_mismatches(world, teams: int) -> int:
@@ -133,25 +160,26 @@ def main() -> None:
     p.add_argument("--chunks", type=int, default=20, help="alternating chunks of kernel and old kernel per repeat")
     p.add_argument("--numpy-evals", type=int, default=150, help="numpy-reference team evaluations per repeat")
     p.add_argument("--check-teams", type=int, default=20, help="random teams for the equality checks")
+    p.add_argument("--processes", type=int, default=4, help="fresh processes for the kernel comparison")
+    p.add_argument("--kernel-worker", action="store_true", help=argparse.SUPPRESS)
+    p.add_argument("--load-order", default="new,old,old_copy", help=argparse.SUPPRESS)
     a = p.parse_args()
 
+    if a.kernel_worker:
+        kernel_worker(a)
+        return
     load_start = os.getloadavg()
     cfg = to_plain(compose_config(f"setup={a.setup}", f"k={a.k}"))
     world = make_world(a.setup)
-    args = kernel_inputs(world)
-    kernel_vs_old(args, 50, 2, True)                         # JIT / cache warm-up
-    evaluate_rate(world, 50)
-    loop_rate(cfg, 50)
-    numpy_rate(world, 5)
     old_bad = old_mismatches(world, a.check_teams)
     numpy_bad = numpy_mismatches(world, a.check_teams)
-    new, old, ratio, wall_ratio, evaluate, loop, numpy_ = [], [], [], [], [], [], []
-    for r in range(a.repeats):                               # alternate so machine noise hits all alike
-        k_new, k_old = kernel_vs_old(args, a.evals, a.chunks, first_new=r % 2 == 0)
-        new.append(k_new[0])
-        old.append(k_old[0])
-        ratio.append(k_new[0] / k_old[0])
-        wall_ratio.append(k_new[1] / k_old[1])
+    rates = kernel_vs_old(a)
+    new, old = rates["new"][:, 0], rates["old"][:, 0]
+    evaluate_rate(world, 50)                                 # warm-up
+    loop_rate(cfg, 50)
+    numpy_rate(world, 5)
+    evaluate, loop, numpy_ = [], [], []
+    for _ in range(a.repeats):                               # alternate so machine noise hits all alike
         evaluate.append(evaluate_rate(world, a.evals))
         numpy_.append(numpy_rate(world, a.numpy_evals))
         loop.append(loop_rate(cfg, a.evals))
@@ -160,27 +188,31 @@ def main() -> None:
     print(json.dumps({
         "benchmark": "throughput", "setup": a.setup, "k": a.k, "repeats": a.repeats, "evals_per_repeat": a.evals,
         "chunks": a.chunks, "clock": "process CPU time",
+        "processes": a.processes,
         "kernel_evals_per_s": round(med(new), 1),
         "old_kernel_evals_per_s": round(med(old), 1),
-        "kernel_over_old": round(med(ratio), 4),
-        "kernel_over_old_runs": [round(x, 4) for x in ratio],
-        "kernel_over_old_wall": round(med(wall_ratio), 4),
+        "kernel_over_old": round(med(new / old), 4),
+        "kernel_over_old_per_process": [round(med(x), 4) for x in np.split(new / old, a.processes)],
+        "kernel_over_old_runs": [round(x, 4) for x in new / old],
+        "kernel_over_old_wall": round(med(rates["new"][:, 1] / rates["old"][:, 1]), 4),
+        "old_copy_over_old": round(med(rates["old_copy"][:, 0] / old), 4),
+        "old_copy_over_old_per_process": [round(med(x), 4) for x in np.split(rates["old_copy"][:, 0] / old,
+                                                                             a.processes)],
         "ns_per_agent_step": round(1e9 / (med(new) * agent_steps), 2),
         "old_ns_per_agent_step": round(1e9 / (med(old) * agent_steps), 2),
         "kernel_equals_old": old_bad == 0,
         "kernel_old_mismatched_teams": old_bad,
         "team_evals_per_s": round(med(evaluate), 1),
         "agent_steps_per_s": round(med(evaluate) * agent_steps, 1),
-        "evaluate_over_kernel": round(med(e / k for e, k in zip(evaluate, new, strict=True)), 3),
+        "evaluate_over_kernel": round(med(evaluate) / med(new), 3),
         "loop_team_evals_per_s": round(med(loop), 1),
-        "loop_over_kernel": round(med(lp / k for lp, k in zip(loop, new, strict=True)), 3),
+        "loop_over_kernel": round(med(loop) / med(new), 3),
         "numpy_team_evals_per_s": round(med(numpy_), 1),
-        "kernel_over_numpy": round(med(k / n for k, n in zip(new, numpy_, strict=True)), 2),
+        "kernel_over_numpy": round(med(new) / med(numpy_), 2),
         "numpy_returns_equal": numpy_bad == 0,
         "numpy_return_mismatches": numpy_bad,
         "checked_teams": a.check_teams, "checked_episodes": a.check_teams * world.episodes,
         "agent_steps_per_team_eval": agent_steps,
-        "kernel_runs": [round(x, 1) for x in new], "old_kernel_runs": [round(x, 1) for x in old],
         "evaluate_runs": [round(x, 1) for x in evaluate], "loop_runs": [round(x, 1) for x in loop],
         "numpy_runs": [round(x, 1) for x in numpy_],
         "loadavg_1m_start": round(load_start[0], 2), "loadavg_1m_end": round(os.getloadavg()[0], 2),
