@@ -18,7 +18,6 @@ from numba import njit
 
 from rovermarl.env.kernel import observers, poi_of
 
-
 FILES = ("behaviour", "occupancy")   # the result files of :meth:`BehaviourObserver.drain`
 
 
