@@ -6,8 +6,9 @@
   :func:`observers` and :func:`payout`) on batch-first arrays, and their flat loops;
 - :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
 
-numba's cache (``cache=True``) checks only the file of the function it compiled: after editing ``math.py``,
-``rules.py`` or ``stages.py``, delete ``rovermarl/env/kernel/__pycache__`` so that callers in other files recompile.
+numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
+editing ``math.py``, ``rules.py`` or ``stages.py``, delete ``rovermarl/env/kernel/__pycache__`` (and
+``rovermarl/record/__pycache__``, whose event functions call :func:`poi_of`) so that their callers recompile.
 """
 
 from rovermarl.env.kernel.fused import rollout
