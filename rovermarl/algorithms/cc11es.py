@@ -29,7 +29,7 @@ class CC11ES(Algorithm):
         self.low = errors.number("policy.init_low", init_low)
         self.high = errors.number("policy.init_high", init_high)
         if self.high <= self.low:
-            raise errors.ConfigError("policy.init_high", init_high, f"must be greater than policy.init_low={init_low}")
+            raise errors.ConfigError("policy.init_high", self.high, f"must be greater than policy.init_low={self.low}")
         self.composition = build_operator(team, "team", n_agents=n)
         self.mutate = build_operator(mutation, "mutation")
         self.accept = build_operator(selection, "selection")
