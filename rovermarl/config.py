@@ -83,7 +83,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
         sweeps = [o for o in parsed if o.is_sweep_override()]
         if sweeps:
             key, _, value = sweeps[0].input_line.partition("=")
-            raise errors.ConfigError(key, dirname(value), "is a sweep; add -m (--multirun) to run several jobs")
+            raise errors.ConfigError(key, _readable(value), "is a sweep; add -m (--multirun) to run several jobs")
         jobs = [list(argv)]
     for job in jobs:
         _check_group_values(job)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import re
 from functools import cache
 
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import InterpolationKeyError
 
 from rovermarl import errors
 from rovermarl.resources import CONF_DIR
@@ -60,7 +62,15 @@ def validate(cfg: DictConfig) -> None:
         raise errors.ConfigError("ray.address", address, "must be null, 'auto' or 'HOST:PORT'")
     if cfg.ray.get("num_cpus") is not None:
         errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
-    parts(to_plain(cfg))                              # builds world and algorithm once; the job reuses them
+    try:
+        plain = to_plain(cfg)
+    except InterpolationKeyError as e:                 # e.g. ~k: the algorithm's node refers to the group
+        missing = re.search(r"Interpolation key '([^']+)' not found", str(e))
+        key = missing.group(1) if missing else "config"
+        what = ("must be a config with a _target_ (pick an option of the group)" if key in allowed
+                else "missing; the config refers to it")
+        raise errors.ConfigError(key, None, what) from None
+    parts(plain)                                       # builds world and algorithm once; the job reuses them
 
 
 def _flag(key: str, value, allowed: str = "true or false") -> None:
