@@ -35,8 +35,9 @@ def task(cfg: DictConfig) -> float:
     name = dirname(hc.overrides.task) if hc.overrides.task else "run"
     try:
         return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
-    except AlgorithmError as e:
-        print(f"{PROG}: error: {name}: {e}", file=sys.stderr)
+    except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
+        cause = getattr(e, "cause", None) or e
+        print(f"{PROG}: error: {name}: {' '.join(str(cause).split())}", file=sys.stderr)
         sys.exit(1)
 
 

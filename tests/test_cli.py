@@ -76,3 +76,18 @@ def test_user_selector_on_searchpath_without_editing_the_package(tmp_path):
     with np.load(tmp_path / "run" / "runs" / "seed_001" / "curve.npz") as c:
         np.testing.assert_array_equal(c["k"], [4, 4, 4, 3, 3, 3, 2, 2, 2, 1, 1, 1])
     assert json.loads((tmp_path / "run" / "summary.json").read_text())["choices"]["k"] == "myschedule"
+
+
+def test_a_selector_choosing_outside_its_arms_stops_the_cli_in_one_line(tmp_path):
+    """On Ray as in this process: one line naming the selector, exit 1."""
+    (tmp_path / "sev.py").write_text("from rovermarl.algorithms.operators.selectors import FixedK\n\n\n"
+                                     "class SevenK(FixedK):\n    def choose(self, rng):\n        return 7\n")
+    (tmp_path / "conf" / "k").mkdir(parents=True)
+    (tmp_path / "conf" / "k" / "seven.yaml").write_text("_target_: sev.SevenK\nvalue: 1\n")
+    proc = run_cli("k=seven", f"hydra.searchpath=[file://{tmp_path / 'conf'}]", "generations=10", "seeds=1",
+                   "ray.num_cpus=2", f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path,
+                   env={"PYTHONPATH": str(tmp_path)})
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 1 and len(lines) == 1, proc.stderr[-3000:]
+    assert lines[0] == ("rovermarl.train: error: generations=10,k=seven: k-selector SevenK chose k=7; allowed: 1 "
+                        "(its arms within 1..N=4)")
