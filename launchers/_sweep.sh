@@ -26,7 +26,7 @@ results_dir() {
     local extra=()
     for arg in "$@"; do
         case "$arg" in   # settings that cannot change the numbers (as in the job dir names), and Hydra's own
-            parallel=* | parallel.* | ray.* | record=* | record.* | checkpoint.* | resume=* | hydra.*) ;;
+            parallel=* | parallel.* | ray.* | record=* | record.* | checkpoint.* | resume=* | hydra.* | [~+]hydra.*) ;;
             *) extra+=("$arg") ;;
         esac
     done

@@ -18,6 +18,8 @@ from rovermarl.runner import Run
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg, run_cli
 
+NO_SWEEP_FIGURES = "~hydra.callbacks.plot"   # a launcher draws its study's figures itself; test_plot tests the callback
+
 
 # ---- statistics ----------------------------------------------------------------------------------------------------
 def test_wilson_interval_known_values():
@@ -94,11 +96,13 @@ def test_switched_counts_episodes_where_unmutated_rovers_change_poi(overrides):
 # ---- the whole pipeline on a tiny budget -----------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
-    """launchers/paper.sh at 300 generations x 2 seeds, serially: the sweep, its results, figures and claims."""
+    """launchers/paper.sh at 300 generations x 2 seeds, serially: the sweep, its results, figures and claims (the
+    launcher's own figures; the per-sweep callback's are tested in test_plot)."""
     tmp = tmp_path_factory.mktemp("study")
     env = {**os.environ, "GENERATIONS": "300", "SEEDS": "2", "OUT": str(tmp / "sweep"),
            "RESULTS": str(tmp / "results"), "PYTHON": sys.executable}
-    proc = subprocess.run(["bash", str(ROOT / "launchers" / "paper.sh"), "parallel=serial"], cwd=tmp, env=env,
+    proc = subprocess.run(["bash", str(ROOT / "launchers" / "paper.sh"), "parallel=serial", NO_SWEEP_FIGURES],
+                          cwd=tmp, env=env,
                           capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return tmp, env, proc
@@ -196,7 +200,8 @@ def test_reproduction_report_quotes_the_committed_results(tmp_path):
 def test_selectors_launcher_runs_every_selector_and_writes_the_table(tmp_path):
     env = {**os.environ, "GENERATIONS": "40", "SEEDS": "2", "OUT": str(tmp_path / "sweep"),
            "RESULTS": str(tmp_path / "results"), "PYTHON": sys.executable}
-    proc = subprocess.run(["bash", str(ROOT / "launchers" / "selectors.sh"), "parallel=serial", "record=off"],
+    proc = subprocess.run(["bash", str(ROOT / "launchers" / "selectors.sh"), "parallel=serial", "record=off",
+                           NO_SWEEP_FIGURES],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr[-3000:]
     text = (tmp_path / "results" / "selectors.md").read_text()
