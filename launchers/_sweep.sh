@@ -1,6 +1,7 @@
 # shellcheck shell=bash
 # Shared by the figure launchers (sourced, not run). Budget and seed count come from the environment:
-#   GENERATIONS (default 200000) and SEEDS (default 16); OUT is the sweep dir (default outputs/paper).
+#   GENERATIONS (default 200000) and SEEDS (default 16); OUT is the sweep dir (default outputs/paper);
+#   FIGURES=no skips a study's figures (draw them later: python -m rovermarl.plot RESULTS_DIR).
 # Every job dir is OUT/<its overrides>, so a relaunch finds its finished runs and skips them, and
 # unfinished runs resume from their checkpoints. Extra arguments are passed to every train command
 # (Hydra overrides: ray.address=auto for a cluster, parallel=serial, ...).
@@ -9,6 +10,13 @@ GENERATIONS="${GENERATIONS:-200000}"
 SEEDS="${SEEDS:-16}"
 OUT="${OUT:-outputs/paper}"
 PYTHON="${PYTHON:-python}"
+FIGURES="${FIGURES:-yes}"
+
+figures() {  # figures RESULTS_DIR PLOT_OPTION...: the study's figures, unless FIGURES=no
+    if [ "$FIGURES" != no ]; then
+        "$PYTHON" -m rovermarl.plot "$@"
+    fi
+}
 
 sweep() {  # sweep OVERRIDE... -- EXTRA...: one multirun into OUT
     "$PYTHON" -m rovermarl.train -m "$@" "generations=$GENERATIONS" "seeds=$SEEDS" "hydra.sweep.dir=$OUT"

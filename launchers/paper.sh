@@ -13,5 +13,5 @@ for fig in fig4 fig5 fig7 fig8; do
     bash "$here/$fig.sh" "$@"
 done
 "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS"
-"$PYTHON" -m rovermarl.plot "$RESULTS" --format png --xscale log
+figures "$RESULTS" --format png --xscale log
 "$PYTHON" -m rovermarl.analysis claims "$RESULTS"

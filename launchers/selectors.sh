@@ -14,5 +14,5 @@ results_dir selectors 50000 16 "$@"
 sweep k=1,2,3,4,adaptive,ucb1,thompson,egreedy,exp3s,schedule setup=solo,duo,trio "$@"
 sweep team=homogeneous setup=solo,duo,trio "$@"
 "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS" --no-fig6
-"$PYTHON" -m rovermarl.plot "$RESULTS" --format png --xscale log
+figures "$RESULTS" --format png --xscale log
 "$PYTHON" -m rovermarl.analysis selectors "$RESULTS"

@@ -199,7 +199,7 @@ def test_reproduction_report_quotes_the_committed_results(tmp_path):
 # ---- the k-selector benchmark ----------------------------------------------------------------------------------
 def test_selectors_launcher_runs_every_selector_and_writes_the_table(tmp_path):
     env = {**os.environ, "GENERATIONS": "40", "SEEDS": "2", "OUT": str(tmp_path / "sweep"),
-           "RESULTS": str(tmp_path / "results"), "PYTHON": sys.executable}
+           "RESULTS": str(tmp_path / "results"), "PYTHON": sys.executable, "FIGURES": "no"}   # paper.sh's test draws
     proc = subprocess.run(["bash", str(ROOT / "launchers" / "selectors.sh"), "parallel=serial", "record=off",
                            NO_SWEEP_FIGURES],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)

@@ -16,6 +16,8 @@ def test_the_private_functions_exist_with_the_signatures_rovermarl_uses():
     assert params[:5] == ["args", "args_parser", "task_function", "config_path", "config_name"], (
         f"hydra {hydra.__version__} changed _run_hydra (checked with {hydra_compat.CHECKED_WITH}): {params}")
     assert list(inspect.signature(BasicSweeper.split_arguments).parameters) == ["overrides", "max_batch_size"]
+    assert list(inspect.signature(BasicSweeper.validate_batch_is_legal).parameters) == ["self", "batch"]
+    assert "self.validate_batch_is_legal(batch)" in inspect.getsource(BasicSweeper.sweep)   # what run() skips
     assert callable(get_args_parser)
 
 
