@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import psutil
+import pytest
 
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg
@@ -32,8 +33,9 @@ def _assert_same(a, b):
         np.testing.assert_array_equal(a[key], b[key], err_msg=str(key))
 
 
-def test_ic_shards_equal_local_evaluation(ray_session, tmp_path):
-    over = ["setup=duo", "k=adaptive", "generations=60", "seeds=2", "parallel.chunk=25"]
+@pytest.mark.parametrize("fresh", ["false", "true"])
+def test_ic_shards_equal_local_evaluation(ray_session, tmp_path, fresh):
+    over = ["setup=duo", "k=adaptive", "generations=60", "seeds=2", "parallel.chunk=25", f"evaluation.fresh_ic={fresh}"]
     run_job(make_cfg(*over, "parallel=serial"), tmp_path / "local")
     run_job(make_cfg(*over, "parallel.ic_shards=2"), tmp_path / "shards")
     _assert_same(_arrays(tmp_path / "local"), _arrays(tmp_path / "shards"))

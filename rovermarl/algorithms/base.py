@@ -37,6 +37,9 @@ import numpy as np
 from rovermarl import errors
 
 Evaluate = Callable[[np.ndarray], float]   # team genomes (N, P) -> score F on the run's initial conditions
+# The runner's Evaluate also has ``fresh`` (bool) and ``draw(generation)``: under ``evaluation.fresh_ic`` an
+# algorithm with ``fresh_ic = True`` calls ``draw(g)`` once per generation g and scores every team it compares on
+# that set (a plain callable has no ``fresh``: read it with ``getattr(evaluate, "fresh", False)``).
 
 
 @dataclass(frozen=True)
@@ -98,10 +101,13 @@ class Algorithm:
     """Base class of a learner over a team of N rovers, each with a genome of P parameters.
 
     Subclasses set :attr:`series` (in ``__init__`` if it depends on the config) and implement ``_init``,
-    ``_advance`` and ``_team``.
+    ``_advance`` and ``_team``. One that honours ``evaluation.fresh_ic`` (``evaluate.fresh``: call
+    ``evaluate.draw(g)`` each generation, re-score the parents there) sets :attr:`fresh_ic`; the runner refuses
+    ``evaluation.fresh_ic=true`` for the others.
     """
 
     series: tuple[Series, ...] = ()
+    fresh_ic: bool = False
 
     def __init__(self, world):
         self.world = world

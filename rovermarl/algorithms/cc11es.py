@@ -21,7 +21,13 @@ from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_o
 
 class CC11ES(Algorithm):
     """Built from ``conf/algorithm/cc11es.yaml``: the nodes of the ``k``, ``selection``, ``team`` and ``mutation``
-    groups, and the initial genome range (``policy.init_low``, ``policy.init_high``)."""
+    groups, and the initial genome range (``policy.init_low``, ``policy.init_high``).
+
+    Under ``evaluation.fresh_ic`` every generation scores the parents again on the child's fresh initial
+    conditions, so selection compares the two on one draw; ``score`` is then the kept team's F on that draw.
+    """
+
+    fresh_ic = True
 
     def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0):
         super().__init__(world)
@@ -66,6 +72,7 @@ class CC11ES(Algorithm):
         parents, f_parent = np.array(state["parents"], dtype=np.float64), float(state["score"])
         h = {s.name: s.empty(n) for s in self.series}
         score = np.empty(n)
+        fresh = getattr(evaluate, "fresh", False)                             # evaluation.fresh_ic
         for t in range(n):
             g = generation + t
             if "probs" in h:
@@ -74,6 +81,9 @@ class CC11ES(Algorithm):
             chosen = team.pick(k, rng_mut)                                    # 2. k distinct rovers
             children = team.mutate(parents, chosen, mutate, rng_mut)          # 3. mutate them
             genomes = team.genomes(children)                                  # (N, P): the team the world sees
+            if fresh:                                                         #    fresh ICs: a new draw, the
+                evaluate.draw(g + 1)                                          #    parents scored on it too
+                f_parent = evaluate(team.genomes(parents))
             f_child = evaluate(genomes)                                       # 4. evaluate the team
             h["switched"][t] = observer.evaluated(team.mutated(chosen))       #    did unmutated rovers switch POI?
             accepted = accept(f_child, f_parent)                              # 5. all k children or none

@@ -5,6 +5,8 @@
 - ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
   (see :mod:`rovermarl.analysis.claims`).
 - ``selectors RESULTS_DIR [--against METHOD]``: the k-selector comparison; ``selectors.md`` and ``.json``.
+- ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
+  (see :mod:`rovermarl.analysis.readings`).
 
 Bad input exits with status 2 and one line on stderr.
 """
@@ -41,6 +43,9 @@ def parser() -> argparse.ArgumentParser:
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
     s.add_argument("results", type=Path, help="results dir written by `export`")
     s.add_argument("--against", default="adaptive", help="method the others are tested against")
+    r = sub.add_parser("readings", help="the readings study: export a sweep, its lifting readings, the report")
+    r.add_argument("action", choices=("export", "lifting", "report"))
+    r.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; lifting, report: RESULTS_DIR")
     return p
 
 
@@ -55,6 +60,8 @@ def main(argv=None) -> None:
             from rovermarl.analysis.claims import claims
             text, _ = claims(args.results)
             print(text, end="")
+        elif args.command == "readings":
+            _readings(args.action, args.paths)
         else:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against)
@@ -62,6 +69,21 @@ def main(argv=None) -> None:
     except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config that cannot be rebuilt
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
+
+
+def _readings(action: str, paths: list[Path]) -> None:
+    from rovermarl.analysis import readings
+
+    want = 2 if action == "export" else 1
+    if len(paths) != want:
+        print(f"{PROG}: error: readings {action} takes {want} path(s), got {len(paths)}", file=sys.stderr)
+        sys.exit(2)
+    if action == "export":
+        readings.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+    elif action == "lifting":
+        print("\n".join(readings.lifting(paths[0])))
+    else:
+        print(readings.report(paths[0])[0], end="")
 
 
 if __name__ == "__main__":

@@ -47,7 +47,7 @@ def fig_update(job: Job, run: RunCurve, world: World, at: int | None = None,
     fig = new_figure(2.6 * len(episodes) + 0.4, 5.9)
     axes = fig.subplots(2, len(episodes), squeeze=False)
     for row, c in enumerate((i - 1, i)):
-        returns = world.team_return(np.asarray(xy[c, episodes, -1], dtype=np.float64))
+        returns = world.episode_return(np.asarray(xy[c, episodes], dtype=np.float64))   # in the run's reading
         for ax, e, ret in zip(axes[row], episodes, returns, strict=True):
             scene(ax, world, xy[c, e][None], lim, lw=1, ms=3)
             ax.set_title(f"episode {e}: return {ret:g}", fontsize=8)

@@ -56,10 +56,13 @@ class Claims:
 
     # ---- building blocks --------------------------------------------------------------------------------------
     def table(self, setup: str, against: str | None = None) -> None:
-        """Per method: median score at each budget, runs reaching the optimum and threshold, time to threshold;
-        with ``against``, Mann-Whitney U of each method's final scores and times against that method's."""
+        """Per method: median score at each budget (and the median held-out score of the final teams, when every
+        job recorded one), runs reaching the optimum and threshold, time to threshold; with ``against``,
+        Mann-Whitney U of each method's final scores and times against that method's."""
         opt, thr = self.levels(setup)
-        head = [f"median score @{b:,}" for b in self.budgets] + [f"runs reaching {opt:g}"]
+        heldout = all("heldout_score" in r.summary for r in self.methods(setup))
+        head = [f"median score @{b:,}" for b in self.budgets] + (["median held-out score"] if heldout else [])
+        head += [f"runs reaching {opt:g}"]
         head += [f"runs reaching {thr:g}"] if thr != opt else []
         head += [f"median generations to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
         base = self.get(setup, against) if against else None
@@ -74,7 +77,8 @@ class Claims:
             times = r.curves.first(thr)
             reach_thr = stats.wilson(int(np.isfinite(times).sum()), n)
             t = stats.median_ci(times)
-            cells = [m.fmt(3) for m in med] + [_count(reach_opt, n)]
+            held = stats.median_ci(list(r.summary["heldout_score"].values())) if heldout else None
+            cells = [m.fmt(3) for m in med] + ([held.fmt(3)] if held else []) + [_count(reach_opt, n)]
             cells += [_count(reach_thr, n)] if thr != opt else []
             cells += [t.fmt(None), ", ".join("never" if np.isinf(q) else f"{q:,.0f}"
                                              for q in quartile_times(times))]
@@ -85,6 +89,8 @@ class Claims:
             rows[r.label] = {"median_score": {str(b): m.as_dict() for b, m in zip(self.budgets, med, strict=True)},
                              f"reach_{opt:g}": reach_opt.as_dict() | {"runs": n},
                              f"reach_{thr:g}": reach_thr.as_dict() | {"runs": n}, f"time_to_{thr:g}": t.as_dict()}
+            if held:
+                rows[r.label]["median_heldout_score"] = held.as_dict()
         self.lines.append("")
         self.data.setdefault("tables", {})[setup] = rows
 

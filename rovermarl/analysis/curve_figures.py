@@ -53,20 +53,26 @@ def _top(ax, title: str) -> None:
 
 
 def fig_curves(setup: str, jobs: Sequence[Job], threshold: float | None) -> tuple[Figure, dict]:
-    """Figs. 4/5/8: medians on top (fixed-k methods faded when a bandit is present), runs below."""
+    """Figs. 4/5/8: medians on top (fixed-k methods faded when a bandit is present), with a diamond at the last
+    generation for the median held-out score of the final teams (jobs that recorded one); runs below."""
     labs = labels(jobs)
     fig, top, bottom = panels(len(jobs))
     fade = any(j.bandit for j in jobs)
-    quart = {}
+    quart, held = {}, {}
     for i, (job, lab, ax) in enumerate(zip(jobs, labs, bottom, strict=True)):
         colour = f"C{i % 10}"
-        line(top, median_curve([r.score for r in job.runs]), color=colour, label=lab,
-              alpha=1.0 if job.bandit or not fade else 0.35, lw=1.5)
+        median = median_curve([r.score for r in job.runs])
+        line(top, median, color=colour, label=lab, alpha=1.0 if job.bandit or not fade else 0.35, lw=1.5)
+        held[lab] = job.heldout()
+        if held[lab] is not None:
+            top.plot([len(median) - 1], [held[lab]], marker="D", ms=5, color=colour, ls="none", clip_on=False)
         quart[lab] = _runs_panel(ax, job, lab, colour, threshold)
     bottom[0].set_ylabel("score")
     note = f"; dotted: 1/4, 1/2, 3/4 of runs reach {threshold:g}" if threshold is not None else ""
+    note += "; diamonds: median held-out score" if any(v is not None for v in held.values()) else ""
     _top(top, f"{setup}: median score{note}")
-    return fig, {"methods": labs, "threshold": threshold, "quartile_generations": quart}
+    return fig, {"methods": labs, "threshold": threshold, "quartile_generations": quart,
+                 "median_heldout_score": held}
 
 
 def fig_soft_vs_strict(setup: str, pairs: Sequence[tuple[Job, Job]], threshold: float | None) -> tuple[Figure, dict]:

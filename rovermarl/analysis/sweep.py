@@ -112,6 +112,11 @@ class Job:
         arms = k_cfg.get("arms") or list(range(1, int(env.get("n_rovers", n_arms)) + 1))
         return [int(a) for a in arms] if len(arms) == n_arms else list(range(1, n_arms + 1))
 
+    def heldout(self) -> float | None:
+        """The median held-out score of the job's final teams (``summary.json``), or None if it has none."""
+        value = (_read_json(self.path / "summary.json") or {}).get("median_heldout_score")
+        return None if value is None else float(value)
+
     def world(self):
         """The job's :class:`~rovermarl.env.World` from its config, or None if it cannot be built."""
         for build in (lambda: World.from_config(OmegaConf.create(self.config)), lambda: make_world(self.setup)):

@@ -6,6 +6,9 @@ Written for reading, not speed: every rule is one vectorised expression over epi
 trajectories agree to rounding (the kernel's branchless math is within 2 ulp of libm, and differences grow over the
 steps).
 
+The world options of SPEC section 8 (``world.reward``, ``world.speed``, ``world.poi_type``) are transcribed here
+too, from the SPEC's words, not from the kernel.
+
 Shapes: E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units, T steps.
 """
 
@@ -26,13 +29,16 @@ def wrap(a: np.ndarray) -> np.ndarray:
 def observe(world, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
     """Observations (SPEC section 3): xy (E, N, 2), heading (E, N) -> (E, N, D).
 
-    Per POI ``[d / range, bearing / pi, coupling - 1]``, then per rover ``[d / range, bearing / pi]`` (own slot
+    Per POI ``[d / range, bearing / pi, type]`` (type: ``coupling - 1``; ``poi_type="sign"``: -1 for coupling 1,
+    else +1; ``"value"``: the POI's value), then per rover ``[d / range, bearing / pi]`` (own slot
     ``[0, 0]``); a target beyond ``sensor_range`` reads ``[1, 0, 0]`` / ``[1, 0]``. The bearing is
     ``atan2(dy, dx) - heading`` wrapped to [-pi, pi).
     """
     e, n = heading.shape
     rng = world.sensor_range
-    poi_type = np.asarray(world.coupling, dtype=np.float64) - 1.0
+    c = np.asarray(world.coupling, dtype=np.float64)
+    poi_type = {"coupling": c - 1.0, "sign": np.sign(c - 1.5),
+                "value": np.asarray(world.value, dtype=np.float64)}[world.poi_type]
     # POIs: offsets (E, N, P)
     dx = world.poi_xy[None, None, :, 0] - xy[:, :, None, 0]
     dy = world.poi_xy[None, None, :, 1] - xy[:, :, None, 1]
@@ -61,20 +67,43 @@ def act(world, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
 
 
 def move(world, xy: np.ndarray, heading: np.ndarray, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """One step (SPEC section 2): turn by ``a1 * w_max``, then move ``(a0 + 1) / 2 * v_max`` along the new heading.
+    """One step (SPEC section 2): turn by ``a1 * w_max``, then move ``(a0 + 1) / 2 * v_max`` (``speed="clip"``:
+    ``max(a0, 0) * v_max``) along the new heading.
     xy (E, N, 2), heading (E, N), actions (E, N, 2) -> new (xy, heading)."""
     heading = heading + actions[..., 1] * world.w_max
-    speed = (actions[..., 0] + 1.0) * 0.5 * world.v_max
+    if world.speed == "clip":
+        speed = np.maximum(actions[..., 0], 0.0) * world.v_max
+    else:
+        speed = (actions[..., 0] + 1.0) * 0.5 * world.v_max
     return xy + speed[..., None] * np.stack([np.cos(heading), np.sin(heading)], axis=-1), heading
 
 
-def team_return(world, xy: np.ndarray) -> np.ndarray:
-    """Per-episode return of final positions (SPEC section 1): xy (E, N, 2) -> (E,). POI j pays ``value[j]`` when at
-    least ``coupling[j]`` rovers are within ``obs_radius`` of it."""
+def count(world, xy: np.ndarray) -> np.ndarray:
+    """Rovers within ``obs_radius`` of each POI: xy (E, N, 2) -> (E, P)."""
     dx = world.poi_xy[None, None, :, 0] - xy[:, :, None, 0]
     dy = world.poi_xy[None, None, :, 1] - xy[:, :, None, 1]
-    count = (np.sqrt(dx * dx + dy * dy) <= world.obs_radius).sum(axis=1)   # (E, P)
-    return np.where(count >= np.asarray(world.coupling), np.asarray(world.value), 0.0).sum(axis=1)
+    return (np.sqrt(dx * dx + dy * dy) <= world.obs_radius).sum(axis=1)
+
+
+def team_return(world, xy: np.ndarray) -> np.ndarray:
+    """Per-episode return of positions (SPEC section 1): xy (E, N, 2) -> (E,). POI j pays ``value[j]`` when at
+    least ``coupling[j]`` rovers are within ``obs_radius`` of it."""
+    return np.where(count(world, xy) >= np.asarray(world.coupling), np.asarray(world.value), 0.0).sum(axis=1)
+
+
+def episode_return(world, traj_xy: np.ndarray) -> np.ndarray:
+    """Per-episode return under ``world.reward`` (SPEC section 8) of trajectories traj_xy (E, T+1, N, 2) -> (E,):
+    ``final`` scores the last positions; ``any_step`` pays POI j once if at some step t >= 1 at least ``coupling[j]``
+    rovers are within ``obs_radius`` of it; ``best_step`` / ``mean_step`` take the max / mean over t = 1..T of the
+    section-1 return."""
+    steps = [traj_xy[:, t] for t in range(1, traj_xy.shape[1])]
+    if world.reward == "final":
+        return team_return(world, steps[-1])
+    if world.reward == "any_step":
+        met = np.any([count(world, xy) >= np.asarray(world.coupling) for xy in steps], axis=0)   # (E, P)
+        return np.where(met, np.asarray(world.value), 0.0).sum(axis=1)
+    per_step = np.array([team_return(world, xy) for xy in steps])                             # (T, E)
+    return per_step.max(axis=0) if world.reward == "best_step" else per_step.mean(axis=0)
 
 
 def rollout(world, genomes: np.ndarray, ic, record: bool = False):
@@ -88,7 +117,7 @@ def rollout(world, genomes: np.ndarray, ic, record: bool = False):
         xy, heading = move(world, xy, heading, act(world, genomes, observe(world, xy, heading)))
         traj_xy.append(xy)
         traj_h.append(heading)
-    returns = team_return(world, xy)
+    returns = episode_return(world, np.stack(traj_xy, axis=1))
     if record:
         return np.stack(traj_xy, axis=1), np.stack(traj_h, axis=1), returns
     return returns

@@ -1,4 +1,9 @@
-"""The multi-rover world (SPEC sections 1-3, 5): geometry, initial conditions, observation, reward, rollout."""
+"""The multi-rover world (SPEC sections 1-3, 5): geometry, initial conditions, observation, reward, rollout.
+
+The world options of SPEC section 8 (other readings of the paper) are fields of :class:`World` and keys of the
+``env`` group: ``reward`` (final | any_step | best_step | mean_step), ``speed`` (affine | clip) and ``poi_type``
+(coupling | sign | value). The defaults are the SPEC reading.
+"""
 
 from __future__ import annotations
 
@@ -18,6 +23,7 @@ _NO_HEADING = np.empty((0, 1, 1))
 _NO_FINAL = np.empty((0, 1, 2))
 
 InitialConditions = tuple[np.ndarray, np.ndarray]  # xy (E, N, 2), heading (E, N)
+HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
 
 
 class Rollout(NamedTuple):
@@ -32,7 +38,11 @@ class Rollout(NamedTuple):
 class World:
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
-    ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]``.
+    ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
+    the other readings of :data:`~rovermarl.env.kernel.REWARDS` score every step, SPEC section 8).
+
+    >>> make_world("duo", reward="any_step", speed="clip", poi_type="sign").poi_sensor_type.tolist()[:3]
+    [1.0, -1.0, -1.0]
     """
 
     coupling: tuple[int, ...]
@@ -46,6 +56,9 @@ class World:
     v_max: float = 1.0
     w_max_deg: float = 60.0
     start_box: float = 0.5
+    reward: str = "final"
+    speed: str = "affine"
+    poi_type: str = "coupling"
     hidden: int = 16
     name: str = ""
     poi_xy: np.ndarray = field(init=False, repr=False)
@@ -72,6 +85,9 @@ class World:
         errors.number("env.w_max_deg", self.w_max_deg, 0, 180)
         errors.number("env.start_box", self.start_box, 0)
         errors.integer("policy.hidden", self.hidden, 1)
+        errors.choice("env.reward", self.reward, kernel.REWARDS)
+        errors.choice("env.speed", self.speed, kernel.SPEEDS)
+        errors.choice("env.poi_type", self.poi_type, kernel.POI_TYPES)
         object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))
         object.__setattr__(self, "value", tuple(float(v) for v in self.value))
         angle = 2 * np.pi * np.arange(self.n_pois) / self.n_pois
@@ -79,7 +95,15 @@ class World:
         object.__setattr__(self, "poi_xy", np.ascontiguousarray(poi_xy))
         object.__setattr__(self, "_coupling", np.array(self.coupling, dtype=np.int64))
         object.__setattr__(self, "_value", np.array(self.value, dtype=np.float64))
-        object.__setattr__(self, "_type", np.array(self.coupling, dtype=np.float64) - 1.0)
+        c = np.array(self.coupling, dtype=np.float64)
+        types = {"coupling": c - 1.0, "sign": np.where(c == 1, -1.0, 1.0), "value": self._value.copy()}
+        object.__setattr__(self, "_type", types[self.poi_type])
+
+    @property
+    def poi_sensor_type(self) -> np.ndarray:
+        """(P,): the third sensor number of each POI in range (``env.poi_type``: ``c - 1``, the sign ``-1`` for
+        ``c = 1`` and ``+1`` otherwise, or the POI's value)."""
+        return self._type.copy()
 
     # ---- construction -------------------------------------------------------------------------
     @classmethod
@@ -119,7 +143,10 @@ class World:
 
     @property
     def max_return(self) -> float:
-        """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo)."""
+        """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo). Under
+        ``reward="any_step"`` a rover may earn several POIs in one episode, so the bound is every POI's value."""
+        if self.reward == "any_step":
+            return float(sum(self.value))
         best = np.zeros(self.n_rovers + 1)
         for c, v in zip(self.coupling, self.value, strict=True):
             for cap in range(self.n_rovers, c - 1, -1):
@@ -162,6 +189,22 @@ class World:
         heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))
         return np.ascontiguousarray(xy), np.ascontiguousarray(heading)
 
+    def run_ic(self, seed: int, generation: int = 0) -> InitialConditions:
+        """The initial conditions run ``seed`` is scored on: stream 0 of ``SeedSequence(seed)`` (SPEC section 5).
+        Under ``evaluation.fresh_ic`` generation ``g >= 1`` draws its own set from child ``g`` of that stream.
+
+        >>> w = make_world("solo")
+        >>> [a.shape for a in w.run_ic(3)], bool((w.run_ic(3, 1)[0] != w.run_ic(3)[0]).all())
+        ([(16, 4, 2), (16, 4)], True)
+        """
+        key = (0,) if generation == 0 else (0, int(generation))
+        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=key))
+
+    def heldout_ic(self, seed: int, n: int = 256) -> InitialConditions:
+        """``n`` initial conditions of run ``seed`` that its algorithm never sees, from a stream of their own
+        (spawn key :data:`HELDOUT_STREAM` of ``SeedSequence(seed)``): the held-out score's."""
+        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=(HELDOUT_STREAM,)), n=n)
+
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
         """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim) (libm rounding: ``kernel.sense_libm``;
@@ -174,7 +217,9 @@ class World:
         return out
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:
-        """Team return of final positions: xy (..., N, 2) -> (...,)."""
+        """Team return of one set of positions (SPEC section 1): xy (..., N, 2) -> (...,). It is the episode's
+        return under ``reward="final"`` (xy after the last step); the per-step readings combine it over the steps
+        (:meth:`episode_return`)."""
         xy = np.ascontiguousarray(xy, dtype=np.float64)
         if xy.ndim < 2 or xy.shape[-2:] != (self.n_rovers, 2):
             raise ValueError(f"xy must have shape (..., {self.n_rovers}, 2), got {xy.shape}")
@@ -182,6 +227,26 @@ class World:
         kernel.reward(xy.reshape(-1, self.n_rovers, 2), self.poi_xy, self._coupling, self._value,
                       float(self.obs_radius), out.reshape(-1))
         return out
+
+    def episode_return(self, xy: np.ndarray) -> np.ndarray:
+        """Episode returns under this world's ``reward`` reading from trajectories xy (..., T+1, N, 2) (index 0 the
+        start, which no reading scores) -> (...,); the same numbers as :meth:`returns`."""
+        xy = np.asarray(xy, dtype=np.float64)
+        if xy.ndim < 3 or xy.shape[-3:] != (self.steps + 1, self.n_rovers, 2):
+            raise ValueError(f"xy must have shape (..., {self.steps + 1}, {self.n_rovers}, 2), got {xy.shape}")
+        if self.reward == "final":
+            return self.team_return(xy[..., -1, :, :])
+        flat = np.ascontiguousarray(xy.reshape(-1, *xy.shape[-3:]))
+        out = np.empty(flat.shape[0])
+        p, e = self.n_pois, flat.shape[0]
+        mode = kernel.REWARDS.index(self.reward)
+        count, step, peak = np.empty((e, p), np.int64), np.empty(e), np.zeros((e, p), np.int64)
+        acc = np.full(e, -np.inf if self.reward == "best_step" else 0.0)
+        for t in range(1, self.steps + 1):
+            kernel.fold(mode, np.ascontiguousarray(flat[:, t]), self.poi_xy, self._coupling, self._value,
+                        float(self.obs_radius), count, step, peak, acc)
+        kernel.settle(mode, self.steps, self._coupling, self._value, peak, acc, out)
+        return out.reshape(xy.shape[:-3])
 
     # ---- rollouts -----------------------------------------------------------------------------
     def rollout(self, genomes: np.ndarray, ic: InitialConditions) -> Rollout:
@@ -212,7 +277,8 @@ class World:
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
         kernel.rollout(genomes, xy0, h0, self.poi_xy, self._type, self._coupling, self._value,
                        self.steps, self.hidden, float(self.sensor_range), float(self.obs_radius),
-                       float(self.v_max), self.w_max, returns, traj_xy, traj_heading,
+                       float(self.v_max), self.w_max, kernel.SPEEDS.index(self.speed),
+                       kernel.REWARDS.index(self.reward), returns, traj_xy, traj_heading,
                        _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
@@ -237,7 +303,8 @@ def score(returns: np.ndarray) -> float:
 
 def make_world(setup: str = "solo", **overrides) -> World:
     """A :class:`World` with the defaults of ``conf/`` (``setup/<setup>.yaml``, ``env/rovers.yaml``,
-    ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)``."""
+    ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)`` or the world
+    options of SPEC section 8, ``make_world("duo", reward="any_step", speed="clip", poi_type="sign")``."""
     path = CONF_DIR / "setup" / f"{setup}.yaml"
     if not path.exists():
         options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))

@@ -27,6 +27,11 @@ class ShardActor:
     def set_ic(self, xy: np.ndarray, heading: np.ndarray) -> None:
         self.ic = (xy, heading)
 
+    def draw(self, seed: int, generation: int, lo: int, hi: int) -> None:
+        """Episodes ``lo:hi`` of run ``seed``'s initial conditions of ``generation`` (``evaluation.fresh_ic``)."""
+        xy, heading = self.world.run_ic(seed, generation)
+        self.ic = (xy[lo:hi], heading[lo:hi])
+
     def returns(self, genomes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """genomes (N, P) -> per-episode returns (e,), final positions (e, N, 2)."""
         final = np.empty(self.ic[0].shape)
@@ -36,17 +41,25 @@ class ShardActor:
 class ShardedEvaluation:
     """An evaluation over shard actors, with the same results as local evaluation
     (:class:`rovermarl.runner.chunk.Evaluation`): ``evaluate(genomes (N, P)) -> F``; with ``keep_final``,
-    ``final_xy`` (E, N, 2) holds the final positions of the team evaluated last."""
+    ``final_xy`` (E, N, 2) holds the final positions of the team evaluated last; ``fresh_seed`` and :meth:`draw` as
+    there (each actor draws its slice of a generation's initial conditions itself)."""
 
-    def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True):
-        self.actors = actors
+    def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
+        self.actors, self.seed = actors, fresh_seed
+        self.fresh = fresh_seed is not None
+        self.calls = 0
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
         bounds = np.linspace(0, ic[1].shape[0], len(actors) + 1).round().astype(int)
         self.slices = list(zip(bounds[:-1], bounds[1:], strict=True))
         ray.get([a.set_ic.remote(ic[0][lo:hi], ic[1][lo:hi]) for a, (lo, hi) in zip(actors, self.slices,
                                                                                      strict=True)])
 
+    def draw(self, generation: int) -> None:
+        ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, (lo, hi) in zip(self.actors, self.slices,
+                                                                                       strict=True)])
+
     def __call__(self, genomes: np.ndarray) -> float:
+        self.calls += 1
         genomes = np.ascontiguousarray(genomes)                         # small: sent inline with each call
         parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
@@ -61,8 +74,8 @@ def run_sharded(cfg, job: dict, records, on_chunk, advance) -> None:
     release_pool()                                                      # its actors hold the CPUs shards need
     actors = [ShardActor.remote(job) for _ in range(cfg.parallel.ic_shards)]
 
-    def evaluation(world, ic, keep_final):
-        return ShardedEvaluation(actors, world, ic, keep_final)
+    def evaluation(world, ic, keep_final, fresh_seed=None):
+        return ShardedEvaluation(actors, world, ic, keep_final, fresh_seed)
     try:
         for rec in records:
             while not rec.done:

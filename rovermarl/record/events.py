@@ -8,7 +8,9 @@
   homogeneous team) or occupancy recording is off.
 - behaviour: the parent team's trajectories ``xy`` (E, T+1, N, 2) float32 at generation 0, at every accepted
   generation that changed the score (and at the generation before it when the team changed since the last
-  entry, so every score change has its exact before and after), and at the last generation.
+  entry, so every score change has its exact before and after), and at the last generation. Under
+  ``evaluation.fresh_ic`` scores come from ever new initial conditions, so only generation 0 and the last are logged
+  (``changes=False``), and occupancy and switched are not measured.
 """
 
 from __future__ import annotations
@@ -29,8 +31,8 @@ class BehaviourObserver:
     holds the final positions of the team evaluated last. Its own buffers hold the parent team's.
     """
 
-    def __init__(self, world, ic, cfg):
-        self.world, self.ic = world, ic
+    def __init__(self, world, ic, cfg, changes: bool = True):
+        self.world, self.ic, self.changes = world, ic, changes
         self.occupancy_on = bool(cfg.get("occupancy", True))
         self.behaviour_on = bool(cfg.get("behaviour", True))
         shape = ic[0].shape                                            # (E, N, 2)
@@ -85,7 +87,7 @@ class BehaviourObserver:
             if self.count is None or not np.array_equal(count, self.count):
                 self.count = count
                 self._occupancy.append((generation, count))
-        if self.behaviour_on:
+        if self.behaviour_on and (self.changes or generation == 0):
             if score_changed:
                 if self.moved:                                          # the exact team before this update
                     self._log_behaviour(generation - 1, self.parents, self.parent_score)

@@ -10,7 +10,8 @@ Job dir layout::
     runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
     runs/seed_XXX/occupancy.npz           generation (M,), count (M, E, P) int8
     runs/seed_XXX/run.rrd                 Rerun recording (see rovermarl.record.rerun_log)
-    runs/seed_XXX/run.json                written last: the run is finished (seed, generations, config hash)
+    runs/seed_XXX/run.json                written last: the run is finished (seed, generations, final and held-out
+                                          score, config hash, provenance)
     runs/seed_XXX/checkpoint.bin          while the run is unfinished (see rovermarl.record.checkpoint)
 """
 
@@ -65,7 +66,8 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     if write_rrd is not None:
         write_rrd(out / "run.rrd", result)
     write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
-                                  "final_score": float(result["score"][-1]), "config_hash": config_hash,
+                                  "final_score": float(result["score"][-1]),
+                                  "heldout_score": float(result["heldout_score"]), "config_hash": config_hash,
                                   "provenance": provenance()})
     return out
 
@@ -96,14 +98,18 @@ def first_reaching(score: np.ndarray, level: float) -> int | None:
 
 
 def summarize(choices: dict, seeds: list[int], scores: dict[int, np.ndarray], levels, wall_time_s: float,
-              team_evals: int) -> dict:
-    """The job's summary: config choices, per-seed final scores and first generations reaching each level."""
+              team_evals: int, heldout: dict[int, float]) -> dict:
+    """The job's summary: config choices, per-seed final and held-out scores, first generations reaching each
+    level."""
     final = {str(s): float(scores[s][-1]) for s in seeds}
+    held = {str(s): float(heldout[s]) for s in seeds}
     return {
         "choices": choices,
         "seeds": list(seeds),
         "final_score": final,
         "median_final_score": float(np.median(list(final.values()))),
+        "heldout_score": held,
+        "median_heldout_score": float(np.median(list(held.values()))),
         "first_generation_reaching": {
             str(lv): {str(s): first_reaching(scores[s], lv) for s in seeds} for lv in levels},
         "wall_time_s": wall_time_s,

@@ -1,7 +1,10 @@
 """One chunk of one run: advance run ``seed`` of a config from a state by n generations (any algorithm).
 
 A run is a pure function of ``(config, seed)``. Its ``SeedSequence(seed)`` gives stream 0 to the initial conditions
-(drawn here, the same in every chunk) and the next ones to the algorithm. :func:`advance` rebuilds the run from its
+(drawn here, the same in every chunk; :meth:`World.run_ic <rovermarl.env.World.run_ic>`) and the next ones to the
+algorithm. The ``evaluation`` section of the config says how teams are scored: ``fresh_ic`` (SPEC section 8: a new
+set of initial conditions every generation) and ``heldout`` (how many held-out initial conditions score the final
+team, :meth:`World.heldout_ic <rovermarl.env.World.heldout_ic>`). :func:`advance` rebuilds the run from its
 compact state, advances it and returns the chunk; Ray can therefore rerun a chunk on another worker after a crash
 and get the same numbers. Evaluation is passed in (local by default, IC shards from :mod:`rovermarl.parallel`).
 """
@@ -21,16 +24,19 @@ from rovermarl.env import World
 from rovermarl.record.events import BehaviourObserver
 from rovermarl.resources import CONF_DIR
 
-EvaluationFactory = Callable[[World, tuple, bool], "Evaluation"]
+EvaluationFactory = Callable[..., "Evaluation"]   # (world, ic, keep_final, fresh_seed) -> Evaluation
+EVALUATION = {"fresh_ic": False, "heldout": 256}  # the evaluation section's defaults (configs from before it too)
 
 
 @dataclass(frozen=True, eq=False)
 class Parts:
-    """What every run of a config is built from: the world, the algorithm and the ``record`` switches."""
+    """What every run of a config is built from: the world, the algorithm, the ``record`` switches and the
+    ``evaluation`` settings."""
 
     world: World
     algorithm: Algorithm
     record: dict
+    evaluation: dict
 
 
 def build(cfg) -> Parts:
@@ -46,7 +52,23 @@ def build(cfg) -> Parts:
         raise errors.ConfigError("algorithm._target_", cfg.algorithm._target_,
                                  "must name a subclass of rovermarl.algorithms.Algorithm")
     record = OmegaConf.to_container(cfg.record, resolve=True) if "record" in cfg else {}
-    return Parts(world, algorithm, record)
+    return Parts(world, algorithm, record, _evaluation(cfg.get("evaluation"), algorithm))
+
+
+def _evaluation(node, algorithm: Algorithm) -> dict:
+    """The ``evaluation`` section, checked, with its defaults filled in."""
+    given = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
+    for key in given:
+        if key not in EVALUATION:
+            raise errors.ConfigError(f"evaluation.{key}", given[key], "unknown key; allowed: fresh_ic, heldout")
+    out = {**EVALUATION, **given}
+    if not isinstance(out["fresh_ic"], bool):
+        raise errors.ConfigError("evaluation.fresh_ic", out["fresh_ic"], "must be true or false")
+    errors.integer("evaluation.heldout", out["heldout"], 1, 1_000_000)
+    if out["fresh_ic"] and not algorithm.fresh_ic:
+        raise errors.ConfigError("evaluation.fresh_ic", True, f"the algorithm {type(algorithm).__name__} does not "
+                                 "draw fresh initial conditions (Algorithm.fresh_ic is false)")
+    return out
 
 
 def upgrade(cfg: DictConfig) -> DictConfig:
@@ -79,13 +101,22 @@ def parts(cfg: dict) -> Parts:
 
 class Evaluation:
     """``evaluate(genomes (N, P)) -> F`` on a run's initial conditions, in this process. With ``keep_final``,
-    :attr:`final_xy` (E, N, 2) holds the final positions of the team evaluated last."""
+    :attr:`final_xy` (E, N, 2) holds the final positions of the team evaluated last. With ``fresh_seed`` (the run's
+    seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and :meth:`draw` moves to a generation's own set.
+    :attr:`calls` counts the team evaluations."""
 
-    def __init__(self, world: World, ic: tuple, keep_final: bool = True):
-        self.world, self.ic = world, ic
+    def __init__(self, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
+        self.world, self.ic, self.seed = world, ic, fresh_seed
+        self.fresh = fresh_seed is not None
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
+        self.calls = 0
+
+    def draw(self, generation: int) -> None:
+        """Score on the initial conditions of ``generation`` from now on (:meth:`World.run_ic`)."""
+        self.ic = self.world.run_ic(self.seed, generation)
 
     def __call__(self, genomes: np.ndarray) -> float:
+        self.calls += 1
         return self.world.evaluate(genomes, self.ic, self.final_xy)
 
 
@@ -102,9 +133,12 @@ class Run:
         self.parts = p = parts(plain)
         self.seed, self.generations = int(seed), int(plain["generations"])
         seeds = np.random.SeedSequence(self.seed)
-        self.ic = p.world.initial_conditions(np.random.default_rng(seeds.spawn(1)[0]))
-        self.observer = BehaviourObserver(p.world, self.ic, p.record)
-        self.evaluate = evaluation(p.world, self.ic, self.observer.needs_final)
+        seeds.spawn(1)                                                    # stream 0: the initial conditions
+        self.ic = p.world.run_ic(self.seed)
+        fresh = p.evaluation["fresh_ic"]
+        record = {**p.record, "occupancy": False} if fresh else p.record  # positions on other ICs: not comparable
+        self.observer = BehaviourObserver(p.world, self.ic, record, changes=not fresh)
+        self.evaluate = evaluation(p.world, self.ic, self.observer.needs_final, self.seed if fresh else None)
         self.observer.watch(self.evaluate)
         if state is None:
             self.generation = 0
@@ -139,6 +173,10 @@ class Run:
             self.observer.finish(self.generation, self.team, self.score)
         return arrays
 
+    def heldout_score(self) -> float:
+        """The current team's score on the run's ``evaluation.heldout`` held-out initial conditions."""
+        return heldout_score(self.parts, self.seed, self.team)
+
     def state(self) -> dict:
         """What the next generation depends on (plain arrays, numbers and dicts)."""
         return {"generation": self.generation, "algorithm": self.algo_state, "observer": self.observer.state_dict()}
@@ -149,19 +187,28 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: Evalua
     (None: from its start).
 
     Returns ``seed``, ``start``, ``stop``, the new ``state``, ``score`` (stop - start,), ``series`` (the algorithm's
-    arrays of those generations), ``events`` (the observer's, per result file); when starting also ``initial_score``
-    and the initial conditions ``ic_xy`` (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes``.
+    arrays of those generations), ``events`` (the observer's, per result file), ``evaluations`` (team
+    evaluations); when starting also ``initial_score``
+    and the initial conditions ``ic_xy`` (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes`` and
+    its ``heldout_score``.
     """
     run = Run(cfg, seed, state, evaluation)
     start = run.generation
     arrays = run.advance(n)
     chunk = {"seed": run.seed, "start": start, "stop": run.generation, "state": run.state(),
-             "score": arrays.pop("score"), "series": arrays, "events": run.observer.drain()}
+             "score": arrays.pop("score"), "series": arrays, "events": run.observer.drain(),
+             "evaluations": run.evaluate.calls}
     if state is None:
         chunk.update(initial_score=run.initial_score, ic_xy=run.ic[0], ic_heading=run.ic[1])
     if run.done:
-        chunk["genomes"] = run.team
+        chunk.update(genomes=run.team, heldout_score=run.heldout_score())
     return chunk
+
+
+def heldout_score(p: Parts, seed: int, team: np.ndarray) -> float:
+    """F of team genomes (N, P) on the ``evaluation.heldout`` held-out initial conditions of run ``seed``
+    (:meth:`World.heldout_ic <rovermarl.env.World.heldout_ic>`), in the world's reading."""
+    return p.world.evaluate(team, p.world.heldout_ic(seed, p.evaluation["heldout"]))
 
 
 def to_plain(cfg: DictConfig) -> dict:

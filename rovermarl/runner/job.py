@@ -12,6 +12,7 @@ import time
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
@@ -21,7 +22,7 @@ from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
 from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
-from rovermarl.runner.chunk import advance, parts, to_plain
+from rovermarl.runner.chunk import advance, heldout_score, parts, to_plain
 from rovermarl.runner.identity import config_hash
 from rovermarl.runner.validate import validate
 
@@ -35,7 +36,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
-    scores, records, other_code = {}, [], []
+    scores, heldout, records, other_code = {}, {}, [], []
     for seed in seeds:
         out = run_dir(job_dir, seed)
         meta = finished(out, key) if cfg.resume else None
@@ -44,6 +45,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
             meta = None if cfg.resume == "strict" else meta
         if meta is not None:
             scores[seed] = load_score(out)
+            heldout[seed] = meta["heldout_score"] if "heldout_score" in meta else _backfill(out, meta, built, seed)
             continue
         problems: list[str] = []
         rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
@@ -62,7 +64,9 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))
     summary_path = job_dir / "summary.json"
     if not records and summary_path.exists():
-        return json.loads(summary_path.read_text())
+        summary = json.loads(summary_path.read_text())
+        if "heldout_score" in summary:
+            return summary
 
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         job_dir.mkdir(parents=True, exist_ok=True)
@@ -72,7 +76,6 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     every = max(cfg.checkpoint.every, 1)
     t0 = time.perf_counter()
     start = sum(rec.generation for rec in records)
-    fresh = sum(rec.state is None for rec in records)                    # each evaluates its initial team too
     with tqdm(total=sum(rec.generations for rec in records), initial=start, desc=name, unit="gen", disable=None,
               leave=False, dynamic_ncols=True) as bar:
         def on_chunk(rec: RunRecord, advanced: int) -> None:
@@ -81,7 +84,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
             if rec.done:
                 save_run(job_dir, rec.result(), series, key, rrd)
                 checkpoint.remove(out / "checkpoint.bin")
-                scores[rec.seed] = rec.score
+                scores[rec.seed], heldout[rec.seed] = rec.score, float(rec.extra["heldout_score"])
                 bar.set_postfix_str(f"runs {len(scores)}/{len(seeds)}")
             elif rec.generation // every > (rec.generation - advanced) // every:
                 rec.save(out / "checkpoint.bin", key)
@@ -89,7 +92,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         run_records(cfg, job, records, on_chunk, advance)
     wall = time.perf_counter() - t0
     summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
-                        team_evals=sum(rec.generations for rec in records) - start + fresh)
+                        team_evals=sum(rec.evaluations for rec in records), heldout=heldout)
     write_json(summary_path, summary)
     with open(job_dir / "invocations.jsonl", "a") as f:                  # compute of every launch, for totals
         f.write(json.dumps({"finished_at": time.time(), "wall_time_s": wall, "team_evals": summary["team_evals"],
@@ -97,6 +100,13 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _backfill(out: Path, meta: dict, built, seed: int) -> float:
+    """The held-out score of a run finished before runs recorded one, from its final team; added to its run.json."""
+    score = heldout_score(built, seed, np.load(out / "genomes.npy"))
+    write_json(out / "run.json", {**meta, "heldout_score": score})
+    return score
 
 
 def _rrd(path: Path, result: dict, world, record, series) -> None:

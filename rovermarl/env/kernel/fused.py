@@ -7,21 +7,25 @@ import numpy as np
 from numba import njit
 
 from rovermarl.env.kernel.math import FAST, sincos_all
-from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, reward, sense_flat, to_flat
+from rovermarl.env.kernel.reward import fold, reward, settle
+from rovermarl.env.kernel.rules import BEST_STEP, FINAL
+from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
 
 
 @njit(**FAST)
 def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden,
-            sensor_range, obs_radius, v_max, w_max, returns, traj_xy, traj_heading, final_xy):
+            sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, returns, traj_xy, traj_heading, final_xy):
     """Run E episodes of T steps for one team; the per-episode team returns go to ``returns`` (E,).
 
     genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N); poi_xy (P, 2), poi_type (P,) (the sensors'
-    third number), coupling (P,) int, value (P,); ``steps`` T, ``hidden`` H; w_max in radians.
+    third number), coupling (P,) int, value (P,); ``steps`` T, ``hidden`` H; w_max in radians; ``speed_mode`` and
+    ``reward_mode`` the indices of ``env.speed`` and ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`.
     If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
     arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
     unless its first axis is zero-sized.
     Each step: all rovers sense, all act, then each turns and moves (``sense_flat``, ``act_flat``, ``move_flat``).
-    After the last step, :func:`~rovermarl.env.kernel.stages.reward` scores the final positions.
+    After the last step, :func:`~rovermarl.env.kernel.reward.reward` scores the final positions (``env.reward=final``);
+    a per-step reading folds the positions after every step instead (``fold``, then ``settle``).
     """
     n_ep, n = heading0.shape
     ne = n * n_ep
@@ -39,19 +43,28 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
         traj_xy[:, 0] = xy0
         traj_heading[:, 0] = heading0
     sincos_all(heading, sin_h, cos_h)
+    xy = np.empty((n_ep, n, 2))
+    per_step = reward_mode != FINAL
+    p = poi_xy.shape[0] if per_step else 0
+    count, peak = np.empty((n_ep, p), dtype=np.int64), np.zeros((n_ep, p), dtype=np.int64)
+    step, acc = np.empty(n_ep), np.full(n_ep, -np.inf if reward_mode == BEST_STEP else 0.0)
     for t in range(steps):
         sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
         act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1)
-        move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max)
+        move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
         if record:
             from_flat(x, traj_xy[:, t + 1, :, 0])
             from_flat(y, traj_xy[:, t + 1, :, 1])
             from_flat(heading, traj_heading[:, t + 1])
-    # reward (SPEC section 1): the final positions. env.reward's per-step readings (SPEC section 8) would call
-    # observers/payout after each move above and combine the step scores here.
-    xy = np.empty((n_ep, n, 2))
+        if per_step:                                  # env.reward read at every step (SPEC section 8)
+            from_flat(x, xy[:, :, 0])
+            from_flat(y, xy[:, :, 1])
+            fold(reward_mode, xy, poi_xy, coupling, value, obs_radius, count, step, peak, acc)
     from_flat(x, xy[:, :, 0])
     from_flat(y, xy[:, :, 1])
     if final_xy.shape[0] == n_ep:
         final_xy[:] = xy
-    reward(xy, poi_xy, coupling, value, obs_radius, returns)
+    if per_step:
+        settle(reward_mode, steps, coupling, value, peak, acc, returns)
+    else:                                             # SPEC section 1: the positions after the last step
+        reward(xy, poi_xy, coupling, value, obs_radius, returns)

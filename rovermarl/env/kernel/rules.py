@@ -4,12 +4,14 @@
 - :func:`poi_of`: the POI a rover observes (lowest index), or -1;
 - :func:`reading`: the sensor encoding of one target, ``[d / range, bearing / pi, type]``, ``[1, 0, 0]`` beyond range;
 - :func:`bearing`: a target's direction in the rover's frame, in [-pi, pi);
-- :func:`turn`, :func:`speed`: the action mapping (turn ``a1 * w_max``, speed ``(a0 + 1) / 2 * v_max``).
+- :func:`turn`, :func:`speed`: the action mapping (turn ``a1 * w_max``; speed ``(a0 + 1) / 2 * v_max``, or
+  ``max(a0, 0) * v_max`` under ``env.speed=clip``);
+- the codes of the world options of SPEC section 8 (:data:`REWARDS`, :data:`SPEEDS`, :data:`POI_TYPES`).
 
-Where the world options of SPEC section 8 go: ``env.speed`` in :func:`speed`; ``env.poi_type`` in the type array
-that the World passes to the sensors (``World._type``); ``env.reward`` in the reward block at the end of
-:func:`rovermarl.env.kernel.fused.rollout` (per-step :func:`~rovermarl.env.kernel.stages.observers` and
-:func:`~rovermarl.env.kernel.stages.payout` instead of one call after the last step).
+Where each world option acts: ``env.speed`` in :func:`speed`; ``env.poi_type`` in the type array that the World
+passes to the sensors (``World.poi_type``); ``env.reward`` in :func:`~rovermarl.env.kernel.reward.fold` (each step)
+and :func:`~rovermarl.env.kernel.reward.settle` (after the last), both built on the one reward rule
+:func:`~rovermarl.env.kernel.reward.payout`.
 
 ``inline="always"`` helpers take their caller's compile options: :func:`bearing`, :func:`turn` and :func:`speed`
 belong in ``FAST`` (FMA-contracting) loops only; :func:`reading` does no arithmetic. :func:`within` and
@@ -23,6 +25,11 @@ import math
 from numba import njit
 
 from rovermarl.env.kernel.math import FAST, atan2
+
+REWARDS = ("final", "any_step", "best_step", "mean_step")   # env.reward; the kernel's code is the index
+FINAL, ANY_STEP, BEST_STEP, MEAN_STEP = range(4)
+SPEEDS = ("affine", "clip")                                  # env.speed; code = index
+POI_TYPES = ("coupling", "sign", "value")                    # env.poi_type (the World builds the type array)
 
 
 @njit(cache=True)
@@ -84,6 +91,9 @@ def turn(heading, a1, w_max):
 
 
 @njit(inline="always", **FAST)
-def speed(a0, v_max):
-    """Distance moved for action ``a0`` in [-1, 1]: ``(a0 + 1) / 2 * v_max``."""
+def speed(a0, v_max, mode):
+    """Distance moved for action ``a0`` in [-1, 1]: ``(a0 + 1) / 2 * v_max`` (``mode`` 0, ``env.speed=affine``) or
+    ``max(a0, 0) * v_max`` (1, ``clip``: the rover stands still for every ``a0 <= 0``)."""
+    if mode == 1:
+        return max(a0, 0.0) * v_max
     return (a0 + 1.0) * 0.5 * v_max

@@ -1,4 +1,5 @@
-"""The world in stages (numba): sense, act, move and reward on batched arrays (SPEC sections 1-4).
+"""The world in stages (numba): sense, act and move on batched arrays (SPEC sections 2-4); the reward stage is
+:mod:`rovermarl.env.kernel.reward`.
 
 Shapes: E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units, G genome length.
 
@@ -21,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from rovermarl.env.kernel.math import FAST, sincos_all, tanh, wrap
-from rovermarl.env.kernel.rules import bearing, reading, speed, turn, within
+from rovermarl.env.kernel.rules import bearing, reading, speed, turn
 
 U = np.uint64
 
@@ -86,9 +87,10 @@ def act(genomes, obs, hidden, out):
 
 
 @njit(**FAST)
-def move(xy, heading, actions, v_max, w_max):
+def move(xy, heading, actions, v_max, w_max, speed_mode=0):
     """One step of motion, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2). Each rover turns by
-    :func:`turn` first, then moves :func:`speed` along its new heading.
+    :func:`turn` first, then moves :func:`speed` along its new heading (``speed_mode``: the index of ``env.speed``
+    in :data:`~rovermarl.env.kernel.rules.SPEEDS`).
 
     >>> import numpy as np
     >>> xy, heading = np.zeros((1, 1, 2)), np.zeros((1, 1))
@@ -107,68 +109,10 @@ def move(xy, heading, actions, v_max, w_max):
     to_flat(heading, h)
     to_flat(actions[:, :, 0], a0)
     to_flat(actions[:, :, 1], a1)
-    move_flat(x, y, h, sin_h, cos_h, a0, a1, v_max, w_max)
+    move_flat(x, y, h, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
     from_flat(x, xy[:, :, 0])
     from_flat(y, xy[:, :, 1])
     from_flat(h, heading)
-
-
-@njit(inline="always", cache=True)
-def observers(xy, poi_xy, radius, out):
-    """Rovers observing each POI: out[e, j] += rovers of episode e :func:`within` ``radius`` of POI j.
-    xy (E, N, 2), poi_xy (P, 2), out (E, P) integers.
-
-    >>> import numpy as np
-    >>> out = np.zeros((1, 2), dtype=np.int64)
-    >>> observers(np.array([[[12.0, 0.0], [14.0, 1.0]]]), np.array([[13.0, 0.0], [-13.0, 0.0]]), 2.0, out)
-    >>> out.tolist()
-    [[2, 0]]
-    """
-    if out.shape != (xy.shape[0], poi_xy.shape[0]):
-        raise ValueError("observers: expected xy (E, N, 2), poi_xy (P, 2) and out (E, P)")
-    for e in range(xy.shape[0]):
-        for i in range(xy.shape[1]):
-            for j in range(poi_xy.shape[0]):
-                if within(poi_xy[j, 0], poi_xy[j, 1], xy[e, i, 0], xy[e, i, 1], radius):
-                    out[e, j] += 1
-
-
-@njit(inline="always", cache=True)
-def payout(count, coupling, value, out):
-    """The reward rule: out[e] = sum over POIs j (in index order) of ``value[j]`` if ``count[e, j] >= coupling[j]``.
-    count (E, P) observers, coupling (P,), value (P,) -> out (E,).
-
-    >>> import numpy as np
-    >>> out = np.empty(1)
-    >>> payout(np.array([[2, 1]]), np.array([2, 2]), np.array([3.0, 3.0]), out)
-    >>> out.tolist()
-    [3.0]
-    """
-    if out.shape[0] != count.shape[0] or coupling.shape[0] != count.shape[1] or value.shape[0] != count.shape[1]:
-        raise ValueError("payout: expected count (E, P), coupling (P,), value (P,) and out (E,)")
-    for e in range(count.shape[0]):
-        total = 0.0
-        for j in range(count.shape[1]):
-            if count[e, j] >= coupling[j]:
-                total += value[j]
-        out[e] = total
-
-
-@njit(cache=True)
-def reward(xy, poi_xy, coupling, value, radius, out):
-    """Team return of each episode from positions: xy (E, N, 2), poi_xy (P, 2), coupling (P,), value (P,) -> out (E,)
-    (:func:`observers`, then :func:`payout`).
-
-    >>> import numpy as np
-    >>> out = np.empty(2)
-    >>> reward(np.array([[[12.0, 0.0]], [[0.0, 0.0]]]), np.array([[13.0, 0.0]]), np.ones(1, np.int64), np.ones(1),
-    ...        2.0, out)
-    >>> out.tolist()
-    [1.0, 0.0]
-    """
-    count = np.zeros((xy.shape[0], poi_xy.shape[0]), dtype=np.int64)
-    observers(xy, poi_xy, radius, count)
-    payout(count, coupling, value, out)
 
 
 @njit(cache=True)
@@ -269,14 +213,14 @@ def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
 
 
 @njit(inline="always", **FAST)
-def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max):
+def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
     """:func:`move` in the flat layout, in place: all arrays (N*E,); sin_h, cos_h follow the new heading."""
     ne = x.shape[0]
     for q in range(ne):
         heading[q] = turn(heading[q], a1[q], w_max)
     sincos_all(heading, sin_h, cos_h)
     for q in range(ne):
-        v = speed(a0[q], v_max)
+        v = speed(a0[q], v_max, speed_mode)
         x[q] += v * cos_h[q]
         y[q] += v * sin_h[q]
 
