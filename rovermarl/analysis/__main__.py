@@ -38,6 +38,8 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("out", type=Path, help="results dir, e.g. results/paper")
     e.add_argument("--generations", type=int, default=None, help="export only jobs with this budget")
     e.add_argument("--no-fig6", dest="fig6", action="store_false", help="skip the Fig. 6 data (re-runs one run)")
+    e.add_argument("--trust-config", dest="trust", action="store_true",
+                   help="let the Fig. 6 re-run build classes outside rovermarl named by the sweep's configs")
     c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
     c.add_argument("results", type=Path, help="results dir written by `export`")
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
@@ -55,7 +57,7 @@ def main(argv=None) -> None:
         if args.command == "export":
             from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6,
-                   log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+                   log=lambda m: print(f"{PROG}: {m}", file=sys.stderr), trust=args.trust)
         elif args.command == "claims":
             from rovermarl.analysis.claims import claims
             text, _ = claims(args.results)

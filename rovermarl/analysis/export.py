@@ -88,8 +88,9 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
 
 
 def export(sweep: Path, out: Path, generations: int | None = None, grid_points: int = GRID_POINTS,
-           fig6: bool = True, log=print) -> dict:
-    """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``."""
+           fig6: bool = True, log=print, trust: bool = False) -> dict:
+    """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``. The Fig. 6
+    data re-runs one run from its job's config: only with rovermarl's own classes, unless ``trust``."""
     jobs, notes = find_jobs(sweep)
     jobs = [j for j in jobs if j.finished and (generations is None or len(j.runs[0].score) == generations + 1)]
     if not jobs:
@@ -110,7 +111,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
         log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
     write_json(out / "compute.json", totals)
     if fig6 and (job := fig6_job(jobs)) is not None:
-        info = export_fig6(job, out / "fig6.npz")
+        info = export_fig6(job, out / "fig6.npz", trust=trust)
         log(f"fig6: {info}")
     for note in notes:
         log(f"note: {note}")
@@ -132,7 +133,7 @@ def _crossings(generation: np.ndarray, score: np.ndarray, levels=FIG6_LEVELS) ->
     return sorted(out)
 
 
-def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS) -> dict:
+def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS, trust: bool = False) -> dict:
     """The data of a Fig. 6-style figure for one run of ``job`` (default: the best final score, earliest first):
     its score change points, the occupancy of one episode over generations, and the team's trajectories just
     before and after the updates that first lift the score to each of ``levels`` (by default: past 4, the
@@ -156,7 +157,8 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
         occ_generation, count = o["generation"], o["count"]
     after = _crossings(generation, score, levels)
     events = [(i - 1, i) for i in after]        # the 'before' entry is the parent team of the 'after' generation
-    replayed = mutated_rovers(job.config, run.seed, [int(generation[i]) for _, i in events])  # in generation order
+    replayed = mutated_rovers(job.config, run.seed, [int(generation[i]) for _, i in events],  # in generation order
+                              source=str(job.path), trust=trust)
     for (_, i), (_, parent_score, accepted) in zip(events, replayed, strict=True):
         if parent_score != score[i] or not accepted:
             raise ResultsError(f"{run.path}: re-running seed {run.seed} does not reproduce generation "

@@ -11,12 +11,17 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl.runner import Run
+from rovermarl.runner.trust import check_targets
 
 
-def mutated_rovers(config: dict, seed: int, generations_after: Sequence[int]) -> list[tuple[np.ndarray, float, bool]]:
+def mutated_rovers(config: dict, seed: int, generations_after: Sequence[int], source: str = "a results directory",
+                   trust: bool = False) -> list[tuple[np.ndarray, float, bool]]:
     """Re-run seed ``seed`` of the job with the composed ``config`` from scratch. For each generation g of
     ``generations_after`` (increasing): the rovers whose genome g changed in the parent team (int64 indices), the
-    parent score after g, and whether g's child was accepted (for the caller to check against the recording)."""
+    parent score after g, and whether g's child was accepted (for the caller to check against the recording).
+    Unless ``trust``, a ``_target_`` outside rovermarl in ``config`` (read from ``source``) is refused first."""
+    if not trust:
+        check_targets(config, source)
     replay, out = Run(OmegaConf.create(config), seed), []
     for g in generations_after:
         replay.advance(g - 1 - replay.generation)
