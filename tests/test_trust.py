@@ -25,8 +25,8 @@ def test_no_read_path_runs_a_target_from_the_results(tmp_path):
     export = run_cli("export", str(sweep), str(tmp_path / "out"), module="rovermarl.analysis")
     assert export.returncode == 2
     assert export.stderr.strip().splitlines()[-1] == (
-        f"rovermarl.analysis: error: algorithm.mutation._target_=builtins.open: is outside rovermarl, in {job}: a results "
-        "directory may not run code; pass --trust-config if you trust it")
+        f"rovermarl.analysis: error: algorithm.mutation._target_=builtins.open: is outside rovermarl, in {job}: "
+        "a results directory may not run code; pass --trust-config if you trust it")
     for argv, module in ((["readings", "export", str(sweep), str(tmp_path / "r")], "rovermarl.analysis"),
                          ([str(sweep), "--out", str(tmp_path / "fig")], "rovermarl.plot"),
                          ([str(run), "--resim", "--no-viewer"], "rovermarl.replay")):
