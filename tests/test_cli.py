@@ -91,3 +91,11 @@ def test_a_selector_choosing_outside_its_arms_stops_the_cli_in_one_line(tmp_path
     assert proc.returncode == 1 and len(lines) == 1, proc.stderr[-3000:]
     assert lines[0] == ("rovermarl.train: error: generations=10,k=seven: k-selector SevenK chose k=7; allowed: 1 "
                         "(its arms within 1..N=4)")
+
+
+def test_more_workers_than_ray_cpus_completes_capped(tmp_path):
+    proc = run_cli("generations=20", "seeds=4", "parallel.workers=4", "ray.num_cpus=2", "record=off",
+                   f"hydra.run.dir={tmp_path}", timeout=180)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "parallel.workers=4 is more than the 2 CPUs of Ray: using 2 workers" in proc.stdout + proc.stderr
+    assert sorted(json.loads((tmp_path / "summary.json").read_text())["final_score"]) == ["0", "1", "2", "3"]

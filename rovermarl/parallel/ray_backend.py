@@ -10,6 +10,7 @@ import socket
 
 import ray
 
+log = logging.getLogger("rovermarl")
 
 @ray.remote(num_cpus=1)
 class ChunkWorker:
@@ -72,7 +73,11 @@ def _probe(address: str, timeout: float = 5.0) -> None:
 def run_ray(cfg, job: dict, records, on_chunk, advance) -> None:
     """Advance the records on the actor pool: one chunk per run in flight, at most one per actor."""
     ensure_ray(cfg.ray)
-    slots = cfg.parallel.workers or max(1, int(ray.cluster_resources().get("CPU", 1)))
+    cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
+    slots = cfg.parallel.workers or cpus
+    if slots > cpus:                     # an actor holds one CPU: the ones beyond Ray's CPUs would never start
+        log.info("parallel.workers=%d is more than the %d CPUs of Ray: using %d workers", slots, cpus, cpus)
+        slots = cpus
     queue = [rec for rec in records if not rec.done]
     free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5), advance)
     job_cfg = ray.put(job)
