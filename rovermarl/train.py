@@ -2,13 +2,15 @@
 
 Every job of an invocation is composed and validated before anything runs (and before Ray starts); a bad config
 exits with status 2 and one line on stderr. Output dirs are named after the command's overrides
-(``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it.
+(``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it. Ctrl-C (SIGINT) and
+SIGTERM stop it with one line and exit 130 / 143 (``HYDRA_FULL_ERROR=1``: the traceback too); Ray is shut down.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 import tempfile
 from pathlib import Path
@@ -113,7 +115,34 @@ def main(argv: list[str] | None = None) -> None:
     except ConfigError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
-    hydra_compat.run(args, parser, task, str(CONF_DIR))
+    previous = signal.signal(signal.SIGTERM, _terminate)             # after Ray's init, which sets its own
+    try:
+        hydra_compat.run(args, parser, task, str(CONF_DIR))
+    except KeyboardInterrupt as e:
+        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        what = "terminated" if isinstance(e, Terminated) else "interrupted"
+        print(f"{PROG}: {what}; relaunch the same command to resume", file=sys.stderr)
+        sys.exit(143 if isinstance(e, Terminated) else 130)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        _stop_ray()
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the driver is, so that it unwinds like Ctrl-C (files are written atomically)."""
+
+
+def _terminate(signum, frame):
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)                    # once: the unwinding may take a moment
+    raise Terminated()
+
+
+def _stop_ray() -> None:
+    """Shut down the Ray this process started or joined (no Ray process of ours outlives the driver)."""
+    ray = sys.modules.get("ray")
+    if ray is not None and ray.is_initialized():
+        ray.shutdown()
 
 
 if __name__ == "__main__":

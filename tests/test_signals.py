@@ -1,0 +1,68 @@
+"""Ctrl-C (SIGINT) and SIGTERM mid-sweep: one line, exit 130 / 143, no traceback, no Ray process left behind; the
+relaunch resumes to the curves of an uninterrupted run."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import psutil
+import pytest
+
+from tests.conftest import ROOT, run_cli
+
+ARGS = ("-m", "k=1,2", "setup=duo", "generations=1500", "seeds=2", "parallel.chunk=100", "checkpoint.every=100",
+        "record=off", "~hydra.callbacks.plot")
+
+
+def _ray_pids() -> set[int]:
+    out = set()
+    for p in psutil.process_iter(["pid", "cmdline"]):
+        cmd = " ".join(p.info["cmdline"] or [])
+        if "ray::" in cmd or "raylet" in cmd or "gcs_server" in cmd or "ray/_private" in cmd or "dashboard" in cmd:
+            out.add(p.info["pid"])
+    return out
+
+
+def _curves(sweep):
+    out = {}
+    for path in sorted(sweep.glob("*/runs/seed_*/curve.npz")):
+        with np.load(path) as z:
+            out[path.relative_to(sweep).as_posix()] = {k: z[k] for k in z.files}
+    return out
+
+
+@pytest.mark.parametrize("sig,code,what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path, sig, code, what):
+    sweep = tmp_path / "sweep"
+    argv = [sys.executable, "-m", "rovermarl.train", *ARGS, "ray.num_cpus=2", f"hydra.sweep.dir={sweep}"]
+    before = _ray_pids()
+    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 240
+    while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before the signal"
+    if sig == signal.SIGINT:
+        os.killpg(proc.pid, sig)                      # Ctrl-C reaches the whole foreground process group
+    else:
+        proc.send_signal(sig)                         # a scheduler's SIGTERM reaches the driver
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == code, err[-3000:]
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert "Traceback" not in err and len(lines) <= 3, err[-3000:]
+    assert lines[-1] == f"rovermarl.train: {what}; relaunch the same command to resume"
+    time.sleep(3)                                     # Ray's processes exit after the driver's shutdown
+    assert not _ray_pids() - before, "Ray processes of the interrupted driver are still running"
+
+    again = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr[-3000:]
+    ref = run_cli(*ARGS, "parallel=serial", f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=600)
+    assert ref.returncode == 0, ref.stderr[-3000:]
+    got, want = _curves(sweep), _curves(tmp_path / "ref")
+    assert got.keys() == want.keys() and len(got) == 4
+    for key in want:
+        for name in want[key]:
+            np.testing.assert_array_equal(got[key][name], want[key][name], err_msg=f"{key}:{name}")
