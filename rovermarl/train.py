@@ -9,6 +9,7 @@ SIGTERM stop it with one line and exit 130 / 143 (``HYDRA_FULL_ERROR=1``: the tr
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import signal
 import sys
@@ -22,12 +23,14 @@ from rovermarl import hydra_compat
 from rovermarl.algorithms.base import AlgorithmError
 from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname
 from rovermarl.errors import ConfigError
+from rovermarl.record import lock
 from rovermarl.resources import CONF_DIR
 from rovermarl.runner.job import run_job
 from rovermarl.runner.validate import validate
 
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
 PROG = "rovermarl.train"
+BUSY = 75                                                              # EX_TEMPFAIL: another launch holds the dir
 
 
 def task(cfg: DictConfig) -> float:
@@ -37,6 +40,9 @@ def task(cfg: DictConfig) -> float:
     name = dirname(hc.overrides.task) if hc.overrides.task else "run"
     try:
         return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
+    except lock.Locked as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        sys.exit(BUSY)
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
         cause = getattr(e, "cause", None) or e
         print(f"{PROG}: error: {name}: {' '.join(str(cause).split())}", file=sys.stderr)
@@ -111,10 +117,19 @@ def main(argv: list[str] | None = None) -> None:
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args, parser, cfgs = check(argv)
-        connect(cfgs)
+        with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
+            connect(cfgs)
+            _run(args, parser)
     except ConfigError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
+    except lock.Locked as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        sys.exit(BUSY)
+
+
+def _run(args, parser) -> None:
+    """Hydra's main, with SIGINT and SIGTERM turned into one line and Ray shut down however it ends."""
     previous = signal.signal(signal.SIGTERM, _terminate)             # after Ray's init, which sets its own
     try:
         hydra_compat.run(args, parser, task, str(CONF_DIR))
@@ -127,6 +142,14 @@ def main(argv: list[str] | None = None) -> None:
     finally:
         signal.signal(signal.SIGTERM, previous)
         _stop_ray()
+
+
+def _sweep_lock(args):
+    """The launch holds its output dir's lock (the sweep dir of a multirun, each job then its own job dir's too, in
+    :func:`run_job`; the run dir of a single run)."""
+    key = "hydra.sweep.dir=" if args.multirun else "hydra.run.dir="
+    given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key)]
+    return lock.hold(Path(given[-1])) if given else contextlib.nullcontext()
 
 
 class Terminated(KeyboardInterrupt):

@@ -14,6 +14,7 @@ import hashlib
 import io
 import json
 import os
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -82,11 +83,16 @@ class RunRecord:
         np.savez(buf, _meta=np.array(json.dumps(meta)), **arrays)
         payload = buf.getvalue()
         path = Path(path)
-        with atomic_open(path.with_suffix(".tmp.bin")) as f:          # complete before touching the old ones
-            f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
-        if path.exists():
-            os.replace(path, previous(path))
-        os.replace(path.with_suffix(".tmp.bin"), path)
+        new = path.with_name(f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}.bin")   # this writer's own name
+        try:
+            with atomic_open(new) as f:                                  # complete before touching the old ones
+                f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+            if path.exists():
+                os.replace(path, previous(path))
+            os.replace(new, path)
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(new)
 
     @classmethod
     def load(cls, path: Path, config_hash: str) -> RunRecord:

@@ -24,7 +24,9 @@ scores, k and the other series, the bandit's probabilities (if any) and the occu
 
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
 from pathlib import Path
 
 import numpy as np
@@ -47,9 +49,10 @@ def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps:
     path = Path(path)
     series = tuple(s for s in series if s.name in result)
     last = len(result["score"]) - 1
-    tmp = path.with_name(f".{path.name}.tmp")
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")     # this writer's own name
     rec = rr.RecordingStream("rovermarl", recording_id=recording_id or path.parent.name)
     rec.save(str(tmp))
+    done = False
     try:
         vmax = occupancy_vmax(result)
         rec.send_blueprint(blueprint(world, series, last, _ranges(result, series), vmax), make_active=True,
@@ -60,8 +63,12 @@ def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps:
         _trajectories(rec, rr, result, steps)
         rec.log("legend", rr.TextDocument(legend(world, series, vmax), media_type="text/markdown"), static=True)
         rec.flush()
+        done = True
     finally:
         rec.disconnect()
+        if not done:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
     os.replace(tmp, path)
     return path
 

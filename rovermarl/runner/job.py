@@ -17,7 +17,7 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
 from rovermarl.parallel import run_records
-from rovermarl.record import checkpoint
+from rovermarl.record import checkpoint, lock
 from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
 from rovermarl.record.provenance import describe, provenance, same_code
@@ -30,8 +30,14 @@ log = logging.getLogger("rovermarl")
 
 
 def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | None = None) -> dict:
-    """Run ``cfg.seeds`` independent runs into ``job_dir``; returns the summary (also summary.json)."""
+    """Run ``cfg.seeds`` independent runs into ``job_dir``; returns the summary (also summary.json). The job dir is
+    locked meanwhile (:mod:`rovermarl.record.lock`: another launch on it raises ``Locked``)."""
     validate(cfg)
+    with lock.hold(job_dir):
+        return _run_job(cfg, Path(job_dir), name, choices)
+
+
+def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) -> dict:
     job, job_dir = to_plain(cfg), Path(job_dir)
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series

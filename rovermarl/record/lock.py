@@ -1,0 +1,51 @@
+"""One writer per output directory: an exclusive ``flock`` on ``<dir>/.lock``, held for the life of a launch.
+
+A second launch on the same sweep or job dir stops at once with one line that names the holder (PID, host, since
+when); the lock goes away with the holder's process, however it ends, so a killed launch never blocks the next.
+Within one process the lock is re-entrant (a single-run launch and its job share one dir).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import os
+import socket
+import time
+from pathlib import Path
+
+NAME = ".lock"
+_HELD: set[Path] = set()                                 # directories this process holds
+
+
+class Locked(Exception):
+    """Another process holds the directory's lock; ``str(err)`` is one line naming it."""
+
+
+@contextlib.contextmanager
+def hold(directory: Path):
+    """Hold ``directory``'s lock (creating the directory) for the ``with`` block; :class:`Locked` if taken."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    key = directory.resolve()
+    if key in _HELD:
+        yield directory
+        return
+    fd = os.open(directory / NAME, os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
+            raise Locked(f"{directory} is in use by {holder}; wait for it to finish or choose another "
+                         "output dir") from None
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"PID {os.getpid()} on {socket.gethostname()} since "
+                      f"{time.strftime('%Y-%m-%d %H:%M:%S')}\n".encode(), 0)
+        _HELD.add(key)
+        try:
+            yield directory
+        finally:
+            _HELD.discard(key)
+    finally:
+        os.close(fd)                                     # closing releases the lock
