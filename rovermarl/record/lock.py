@@ -2,7 +2,8 @@
 
 A second launch on the same sweep or job dir stops at once with one line that names the holder (PID, host, since
 when); the lock goes away with the holder's process, however it ends, so a killed launch never blocks the next.
-Within one process the lock is re-entrant (a single-run launch and its job share one dir).
+Within one process the lock is re-entrant (a single-run launch and its job share one dir). A launch that stops
+before writing anything leaves no directory behind: the dirs it created for the lock are removed with it.
 """
 
 from __future__ import annotations
@@ -26,11 +27,12 @@ class Locked(Exception):
 def hold(directory: Path):
     """Hold ``directory``'s lock (creating the directory) for the ``with`` block; :class:`Locked` if taken."""
     directory = Path(directory)
-    directory.mkdir(parents=True, exist_ok=True)
     key = directory.resolve()
     if key in _HELD:
         yield directory
         return
+    created = [d for d in (key, *key.parents) if not d.exists()]           # deepest first
+    directory.mkdir(parents=True, exist_ok=True)
     fd = os.open(directory / NAME, os.O_RDWR | os.O_CREAT, 0o666)
     try:
         try:
@@ -49,3 +51,8 @@ def hold(directory: Path):
             _HELD.discard(key)
     finally:
         os.close(fd)                                     # closing releases the lock
+        if created and [p.name for p in directory.iterdir()] == [NAME]:   # nothing was written: leave nothing
+            with contextlib.suppress(OSError):
+                (directory / NAME).unlink()
+                for d in created:
+                    d.rmdir()

@@ -22,11 +22,13 @@ from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
 from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
+from rovermarl.runner import budget
 from rovermarl.runner.chunk import advance, heldout_score, parts, to_plain
 from rovermarl.runner.identity import config_hash
-from rovermarl.runner.validate import validate
+from rovermarl.runner.validate import series_bytes, validate
 
 log = logging.getLogger("rovermarl")
+LONG_JOB_S = 600.0                                                      # a job estimated longer says so at INFO
 
 
 def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | None = None) -> dict:
@@ -41,6 +43,10 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     job, job_dir = to_plain(cfg), Path(job_dir)
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
+    est = budget.estimate(job, series_bytes(series))
+    if est.job_s > LONG_JOB_S:
+        log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
+                 budget.size(est.total_memory))
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
     scores, heldout, records, other_code = {}, {}, [], []
     for seed in seeds:

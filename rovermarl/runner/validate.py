@@ -5,11 +5,13 @@ from __future__ import annotations
 import re
 from functools import cache
 
+import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import InterpolationKeyError
 
 from rovermarl import errors
 from rovermarl.resources import CONF_DIR
+from rovermarl.runner import budget
 from rovermarl.runner.chunk import parts, to_plain
 
 
@@ -70,7 +72,13 @@ def validate(cfg: DictConfig) -> None:
         what = ("must be a config with a _target_ (pick an option of the group)" if key in allowed
                 else "missing; the config refers to it")
         raise errors.ConfigError(key, None, what) from None
-    parts(plain)                                       # builds world and algorithm once; the job reuses them
+    built = parts(plain)                               # builds world and algorithm once; the job reuses them
+    budget.check(plain, series_bytes(built.algorithm.series))
+
+
+def series_bytes(series) -> int:
+    """Bytes per generation of an algorithm's declared series."""
+    return sum(np.dtype(s.dtype).itemsize * int(np.prod(s.shape)) for s in series)
 
 
 def _flag(key: str, value, allowed: str = "true or false") -> None:

@@ -1,0 +1,121 @@
+"""What a job asks of the machine, estimated before any work (and before Ray starts).
+
+:func:`check` refuses, in one line naming the key, a config that cannot fit this machine's memory or whose single
+team evaluation would take longer than :data:`EVALUATION_LIMIT_S`, or whose mutation size makes genomes non-finite;
+:func:`estimate` gives the memory and time a feasible job needs (the job logs the time at INFO when it is long).
+
+The cost model is this project's kernel measured on a 2-core AVX-512 machine (``benchmarks/throughput.py``: about
+320 ns per agent-step at 38 inputs x 16 hidden units, two thirds of it the MLP), scaled by the MLP's size.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+from rovermarl import errors
+
+EVALUATION_LIMIT_S = 3600.0        # one team evaluation longer than this is refused
+NS_BASE, NS_PER_MAC, NS_PER_TARGET = 100.0, 0.35, 5.0   # per agent-step: fixed, per MLP multiply-add, per sensed target
+SIGMA_LIMIT = 1e100                # a Gaussian mutation beyond this overflows genomes within a run
+DEFAULTS = {"generations": 20000, "seeds": 16, "env.episodes": 16, "env.steps": 15, "env.n_rovers": 4,
+            "policy.hidden": 16}
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Memory (bytes) of the largest parts, and the time (s) of one evaluation and of the whole job."""
+
+    memory: dict[str, float]        # part -> bytes
+    evaluation_s: float
+    job_s: float
+    cpus: int
+
+    @property
+    def total_memory(self) -> float:
+        return sum(self.memory.values())
+
+
+def available_memory() -> float:
+    """Bytes of memory available to a new job (``MemAvailable``; all physical memory where unknown)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+def estimate(plain: dict, series_bytes: int = 32) -> Estimate:
+    """The estimate of a plain composed config; ``series_bytes`` is the algorithm's bytes per generation."""
+    env, g = plain["env"], int(plain["generations"])
+    n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
+    p = len(plain["setup"]["coupling"])
+    d = 3 * p + 2 * n
+    genome = (d + 3) * h + 2
+    seeds = int(plain["seeds"])
+    fresh = bool((plain.get("evaluation") or {}).get("fresh_ic", False))
+    memory = {
+        "records": 1.0 * seeds * (g + 1) * (8 + series_bytes),                 # the driver's curves of every run
+        "team": 3.0 * n * genome * 8,                                          # parents, children, the world's copy
+        "episodes": 1.0 * e * n * (d + h + 8) * 8,                             # observations, hidden units, state
+    }
+    ns = NS_BASE + NS_PER_MAC * d * h + NS_PER_TARGET * (p + n)
+    evaluation_s = e * t * n * ns * 1e-9
+    par = plain.get("parallel") or {}
+    cpus = 1 if par.get("backend") == "serial" else int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count())
+    job_s = evaluation_s * (g * (2 if fresh else 1) + 1) * seeds / max(1, min(cpus, seeds))
+    return Estimate(memory, evaluation_s, job_s, cpus)
+
+
+def check(plain: dict, series_bytes: int = 32) -> Estimate:
+    """Raise :class:`~rovermarl.errors.ConfigError` for a job this machine cannot do; else its estimate."""
+    sigma = (plain.get("mutation") or {}).get("sigma")
+    if isinstance(sigma, (int, float)) and not isinstance(sigma, bool) and abs(sigma) > SIGMA_LIMIT:
+        raise errors.ConfigError("mutation.sigma", sigma, f"must be at most {SIGMA_LIMIT:g}: larger Gaussian "
+                                 "mutations make genomes non-finite")
+    est = estimate(plain, series_bytes)
+    if est.evaluation_s > EVALUATION_LIMIT_S:
+        key = _largest(plain, ("env.steps", "env.episodes", "policy.hidden", "env.n_rovers"))
+        raise errors.ConfigError(key, _get(plain, key), f"one team evaluation would take about "
+                                 f"{duration(est.evaluation_s)} here (limit {duration(EVALUATION_LIMIT_S)})")
+    avail = available_memory()
+    if est.total_memory > avail:
+        part = max(est.memory, key=est.memory.get)
+        keys = {"records": ("generations", "seeds"), "team": ("policy.hidden", "env.n_rovers"),
+                "episodes": ("env.episodes", "env.n_rovers", "policy.hidden")}[part]
+        key = _largest(plain, keys)
+        raise errors.ConfigError(key, _get(plain, key), f"the job needs about {size(est.total_memory)} of memory "
+                                 f"({part}), this machine has {size(avail)} available")
+    return est
+
+
+def _get(plain: dict, key: str):
+    node = plain
+    for part in key.split("."):
+        node = node[part]
+    return node
+
+
+def _largest(plain: dict, keys) -> str:
+    """The key whose value is furthest above its default (the one to name)."""
+    return max(keys, key=lambda k: float(_get(plain, k)) / DEFAULTS[k])
+
+
+def duration(seconds: float) -> str:
+    """``about``-style durations: ``40 s``, ``12 min``, ``3.5 h``, ``9 days``, ``2e+04 years``."""
+    for unit, span in (("years", 365.25 * 86400), ("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= span * (1 if unit != "days" else 2):
+            value = seconds / span
+            return f"{value:.2g} {unit}" if value < 1e4 else f"{value:.1e} {unit}"
+    return f"{math.ceil(seconds)} s"
+
+
+def size(nbytes: float) -> str:
+    for unit, span in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6)):
+        if nbytes >= span:
+            return f"{nbytes / span:.3g} {unit}"
+    return f"{nbytes / 1e3:.3g} kB"
