@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import getpass
 import os
+import re
 import shlex
 import shutil
 import signal
@@ -44,7 +45,7 @@ def find_run(path: Path, seed: int | None) -> Path:
         return path
     if (path / "run.json").exists() or (path / "genomes.npy").exists():
         return path
-    runs = sorted(p for p in (path / "runs").glob("seed_*") if p.is_dir())
+    runs = sorted(p for p in (path / "runs").glob("seed_*") if p.is_dir() and re.fullmatch(r"seed_\d+", p.name))
     if not runs:
         raise ReplayError(f"{path}: holds no runs (expected a run dir with run.json, a job dir with runs/, or an .rrd)")
     if seed is None:

@@ -27,6 +27,9 @@ from rovermarl.env import World, make_world
 NOT_METHOD = ("parallel", "ray", "hydra", "setup", "record", "checkpoint", "resume")
 
 
+RUN_DIR = re.compile(r"seed_\d+")   # a run's dir; seed_XXX.<hash> holds one set aside under another identity
+
+
 class SweepError(Exception):
     """A path that holds no readable sweep, job or run; ``str(err)`` is one line."""
 
@@ -170,7 +173,7 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     overrides = [str(o).replace("'", "").replace('"', "") for o in _read_yaml(hydra_dir / "overrides.yaml") or []]
     runs = []
     for run_dir in sorted((path / "runs").glob("seed_*")):
-        if not (run_dir / "curve.npz").is_file():
+        if not RUN_DIR.fullmatch(run_dir.name) or not (run_dir / "curve.npz").is_file():   # seed_XXX.<hash>: set aside
             continue
         try:
             runs.append(load_run(run_dir))

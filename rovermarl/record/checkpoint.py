@@ -123,6 +123,16 @@ class RunRecord:
         return rec
 
 
+def identity(path: Path) -> str | None:
+    """The config hash a checkpoint file was written under, or None if it cannot be read."""
+    try:
+        header, _, payload = Path(path).read_bytes().partition(b"\n")
+        with np.load(io.BytesIO(payload)) as z:
+            return str(json.loads(str(z["_meta"]))["config_hash"])
+    except Exception:  # noqa: BLE001 - any unreadable file has no identity
+        return None
+
+
 def previous(path: Path) -> Path:
     return Path(path).with_suffix(".prev.bin")
 

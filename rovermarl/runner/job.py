@@ -51,6 +51,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     scores, heldout, records, other_code = {}, {}, [], []
     for seed in seeds:
         out = run_dir(job_dir, seed)
+        if cfg.resume:
+            _set_aside_other_identity(out, key, name)
         meta = finished(out, key) if cfg.resume else None
         if meta is not None and not same_code(meta.get("provenance")):
             other_code.append(meta.get("provenance"))
@@ -112,6 +114,27 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
+    """A run dir made under another identity (another config, or other recording switches) moves to
+    ``seed_XXX.<its hash>``, so the run starts afresh beside it and the two never mix."""
+    other = None
+    try:
+        other = json.loads((out / "run.json").read_text()).get("config_hash")
+    except (OSError, ValueError, AttributeError):
+        pass
+    for path in (out / "checkpoint.bin", checkpoint.previous(out / "checkpoint.bin")):
+        other = other or (checkpoint.identity(path) if path.exists() else None)
+    if not other or other == key:
+        return
+    aside = out.with_name(f"{out.name}.{other[:12]}")
+    n = 1
+    while aside.exists():
+        aside, n = out.with_name(f"{out.name}.{other[:12]}.{n}"), n + 1
+    out.rename(aside)
+    log.warning("%s: %s was made under another identity (config hash %s): moved to %s; the run starts afresh",
+                name, out.name, other[:12], aside.name)
 
 
 def _backfill(out: Path, meta: dict, built, seed: int) -> float:

@@ -1,0 +1,62 @@
+"""A run's identity covers the recording switches; a run dir made under another identity is set aside
+(``seed_XXX.<hash>``) and the run starts afresh, so a finished run never mixes two configs' data."""
+
+import json
+
+import numpy as np
+
+from rovermarl.record.checkpoint import RunRecord
+from rovermarl.runner.chunk import advance, parts, to_plain
+from rovermarl.runner.identity import config_hash
+from rovermarl.runner.job import run_job
+from tests.conftest import make_cfg
+
+BASE = ("setup=duo", "k=1", "generations=300", "seeds=1", "parallel=serial", "parallel.chunk=100",
+        "checkpoint.every=100")
+
+
+def _arrays(run):
+    out = {}
+    for f in sorted(run.glob("*.np[yz]")):
+        if f.suffix == ".npy":
+            out[f.name] = np.load(f)
+        else:
+            with np.load(f) as z:
+                out.update({f"{f.name}:{k}": z[k] for k in z.files})
+    return out
+
+
+def test_recording_switches_are_part_of_the_identity_only_when_off():
+    on, off = (to_plain(make_cfg(*BASE, r)) for r in ("record=default", "record=off"))
+    assert config_hash(on) == config_hash(to_plain(make_cfg(*BASE, "record.rerun=false", "record.every=5")))
+    assert config_hash(on) != config_hash(off)
+    assert config_hash(on) != config_hash(to_plain(make_cfg(*BASE, "record.occupancy=false")))
+
+
+def test_a_record_off_checkpoint_resumed_with_recording_on_starts_afresh_beside_it(tmp_path):
+    off = to_plain(make_cfg(*BASE, "record=off"))
+    job = tmp_path / "job"
+    out = job / "runs" / "seed_000"
+    rec = RunRecord(0, 300, parts(off).algorithm.series)            # a real checkpoint, 100 generations in
+    rec.add(advance(off, 0, None, 100))
+    out.mkdir(parents=True)
+    rec.save(out / "checkpoint.bin", config_hash(off))
+    run_job(make_cfg(*BASE), job)
+    aside = job / "runs" / f"seed_000.{config_hash(off)[:12]}"
+    assert (aside / "checkpoint.bin").is_file() and not (aside / "run.json").exists()
+    run_job(make_cfg(*BASE), tmp_path / "fresh")
+    got, want = _arrays(out), _arrays(tmp_path / "fresh" / "runs" / "seed_000")
+    assert got.keys() == want.keys() and "behaviour.npz:xy" in got
+    for key in want:
+        np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    assert got["behaviour.npz:generation"][0] == 0 and (got["curve.npz:switched"] >= 0).all()
+
+
+def test_a_finished_run_of_another_config_is_set_aside_not_overwritten(tmp_path):
+    job = tmp_path / "job"
+    run_job(make_cfg(*BASE, "record=off"), job)
+    old = json.loads((job / "runs/seed_000/run.json").read_text())
+    summary = run_job(make_cfg(*BASE), job)
+    aside = job / "runs" / f"seed_000.{old['config_hash'][:12]}"
+    assert json.loads((aside / "run.json").read_text()) == old
+    assert (job / "runs/seed_000/behaviour.npz").is_file() and summary["seeds"] == [0]
