@@ -60,3 +60,22 @@ def test_a_finished_run_of_another_config_is_set_aside_not_overwritten(tmp_path)
     aside = job / "runs" / f"seed_000.{old['config_hash'][:12]}"
     assert json.loads((aside / "run.json").read_text()) == old
     assert (job / "runs/seed_000/behaviour.npz").is_file() and summary["seeds"] == [0]
+
+
+def test_a_finished_run_whose_files_do_not_verify_is_recomputed(tmp_path, caplog):
+    job = tmp_path / "job"
+    run_job(make_cfg(*BASE), job)
+    out = job / "runs" / "seed_000"
+    meta = json.loads((out / "run.json").read_text())
+    assert set(meta["files"]) == {"curve.npz", "genomes.npy", "initial_conditions.npz", "behaviour.npz",
+                                  "occupancy.npz", "run.rrd"}
+    want = _arrays(out)
+    curve = out / "curve.npz"
+    curve.write_bytes(curve.read_bytes()[:-100])                       # cut short, as by a full disk or a copy
+    with caplog.at_level("WARNING", logger="rovermarl"):
+        run_job(make_cfg(*BASE), job)
+    assert f"{curve} has" in caplog.text and "recomputing the run" in caplog.text
+    got = _arrays(out)
+    for key in want:
+        np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    assert set(json.loads((out / "run.json").read_text())["files"]) == set(meta["files"])

@@ -11,13 +11,15 @@ Job dir layout::
     runs/seed_XXX/occupancy.npz           generation (M,), count (M, E, P) int8
     runs/seed_XXX/run.rrd                 Rerun recording (see rovermarl.record.rerun_log)
     runs/seed_XXX/run.json                written last: the run is finished (seed, generations, final and held-out
-                                          score, config hash, provenance)
+                                          score, config hash, provenance, and the size and SHA-256 of every
+                                          file above: a relaunch recomputes a run whose files do not verify)
     runs/seed_XXX/checkpoint.bin          while the run is unfinished (see rovermarl.record.checkpoint)
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import os
 import secrets
@@ -56,6 +58,8 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     """Write one finished run's files, ``run.json`` last: ``curve.npz`` holds ``score`` and the declared ``series``
     (:class:`~rovermarl.algorithms.base.Series`); ``write_rrd(path, result)`` adds the recording."""
     out = run_dir(job_dir, result["seed"])
+    with contextlib.suppress(FileNotFoundError):
+        (out / "run.json").unlink()                                   # not finished until every file is rewritten
     _savez(out / "curve.npz", {"score": result["score"], **{s.name: result[s.name] for s in series}})
     with atomic_open(out / "genomes.npy") as f:
         np.save(f, result["genomes"])
@@ -65,11 +69,37 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
         _savez(out / f"{file}.npz", {k[len(prefix):]: v for k, v in result.items() if k.startswith(prefix)})
     if write_rrd is not None:
         write_rrd(out / "run.rrd", result)
+    names = ["curve.npz", "genomes.npy", "initial_conditions.npz", *(f"{f}.npz" for f in EVENT_FILES)]
+    names += ["run.rrd"] if write_rrd is not None else []
     write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
                                   "final_score": float(result["score"][-1]),
                                   "heldout_score": float(result["heldout_score"]), "config_hash": config_hash,
+                                  "files": {name: digest(out / name) for name in names},
                                   "provenance": provenance()})
     return out
+
+
+def digest(path: Path) -> dict:
+    """``{"bytes": size, "sha256": hex}`` of a file."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return {"bytes": Path(path).stat().st_size, "sha256": h.hexdigest()}
+
+
+def verify(out: Path, meta: dict) -> str | None:
+    """None if every file ``run.json`` lists (``meta["files"]``) is there with its size and checksum, else what is
+    wrong, naming the file. Runs finished before run.json listed files verify by their run.json alone."""
+    for name, want in (meta.get("files") or {}).items():
+        path = Path(out) / name
+        if not path.is_file():
+            return f"{path} is missing"
+        if path.stat().st_size != want.get("bytes"):
+            return f"{path} has {path.stat().st_size} bytes, run.json says {want.get('bytes')}"
+        if digest(path)["sha256"] != want.get("sha256"):
+            return f"{path} does not match its checksum in run.json"
+    return None
 
 
 def finished(out: Path, config_hash: str) -> dict | None:

@@ -19,7 +19,16 @@ from tqdm.auto import tqdm
 from rovermarl.parallel import run_records
 from rovermarl.record import checkpoint, lock
 from rovermarl.record.checkpoint import RunRecord
-from rovermarl.record.outputs import atomic_open, finished, load_score, run_dir, save_run, summarize, write_json
+from rovermarl.record.outputs import (
+    atomic_open,
+    finished,
+    load_score,
+    run_dir,
+    save_run,
+    summarize,
+    verify,
+    write_json,
+)
 from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
 from rovermarl.runner import budget
@@ -54,6 +63,10 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         if cfg.resume:
             _set_aside_other_identity(out, key, name)
         meta = finished(out, key) if cfg.resume else None
+        if meta is not None and (problem := verify(out, meta)):
+            log.warning("%s: seed %d: %s; recomputing the run", name, seed, problem)
+            (out / "run.json").unlink()
+            meta = None
         if meta is not None and not same_code(meta.get("provenance")):
             other_code.append(meta.get("provenance"))
             meta = None if cfg.resume == "strict" else meta
