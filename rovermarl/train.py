@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import os
 import signal
 import sys
@@ -31,6 +32,7 @@ from rovermarl.runner.validate import validate
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
 PROG = "rovermarl.train"
 BUSY = 75                                                              # EX_TEMPFAIL: another launch holds the dir
+STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM)   # one line, not a traceback
 
 
 def task(cfg: DictConfig) -> float:
@@ -43,6 +45,12 @@ def task(cfg: DictConfig) -> float:
     except lock.Locked as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(BUSY)
+    except OSError as e:
+        if e.errno not in STORAGE_ERRORS or os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        print(f"{PROG}: error: {name}: cannot write {e.filename or 'a result file'}: {e.strerror}; fix it and relaunch "
+              "the same command to resume", file=sys.stderr)
+        sys.exit(1)
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
         cause = getattr(e, "cause", None) or e
         print(f"{PROG}: error: {name}: {' '.join(str(cause).split())}", file=sys.stderr)

@@ -44,9 +44,11 @@ def atomic_open(path: Path, mode: str = "wb"):
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
+        if isinstance(e, OSError) and e.filename is None:             # a failed write: name the file it was for
+            raise OSError(e.errno, e.strerror, str(path)) from None
         raise
 
 
