@@ -79,3 +79,46 @@ def test_a_finished_run_whose_files_do_not_verify_is_recomputed(tmp_path, caplog
     for key in want:
         np.testing.assert_array_equal(got[key], want[key], err_msg=key)
     assert set(json.loads((out / "run.json").read_text())["files"]) == set(meta["files"])
+
+
+def test_checkpoint_bytes_grow_with_the_generations_done_not_asked(tmp_path):
+    sizes = {}
+    for asked in (300, 30_000):
+        plain = to_plain(make_cfg(*BASE, f"generations={asked}", "record=off"))
+        rec = RunRecord(0, asked, parts(plain).algorithm.series)
+        rec.add(advance(plain, 0, None, 100))
+        rec.save(tmp_path / f"{asked}.bin", "x")
+        sizes[asked] = (tmp_path / f"{asked}.bin").stat().st_size
+        back = RunRecord.load(tmp_path / f"{asked}.bin", "x")
+        np.testing.assert_array_equal(back.score[:101], rec.score[:101])
+        assert back.score.shape == (asked + 1,) and back.history["k"].shape == (asked,)
+    assert abs(sizes[30_000] - sizes[300]) < 2_000, sizes
+
+
+def test_stale_summary_wrong_seed_checkpoint_and_nan_curve_are_not_trusted(tmp_path, caplog):
+    job = tmp_path / "job"
+    run_job(make_cfg(*BASE, "seeds=2"), job)
+    assert run_job(make_cfg(*BASE, "seeds=1"), job)["seeds"] == [0]                 # not the 2-seed summary
+    assert json.loads((job / "summary.json").read_text())["seeds"] == [0]
+    with np.load(job / "runs/seed_001/curve.npz") as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["score"][:] = np.nan
+    np.savez(job / "runs/seed_001/curve.npz", **arrays)
+    meta = json.loads((job / "runs/seed_001/run.json").read_text())
+    del meta["files"]                                                     # as a run.json from before the checksums
+    (job / "runs/seed_001/run.json").write_text(json.dumps(meta))
+    with caplog.at_level("WARNING", logger="rovermarl"):
+        summary = run_job(make_cfg(*BASE, "seeds=2"), job)
+    assert "holds non-finite scores; recomputing the run" in caplog.text
+    assert np.isfinite(list(summary["final_score"].values())).all()
+    plain = to_plain(make_cfg(*BASE, "seeds=3", "seed=0"))
+    rec = RunRecord(0, 300, parts(plain).algorithm.series)                 # seed 0's checkpoint in seed 2's dir
+    rec.add(advance(plain, 0, None, 100))
+    (job / "runs/seed_002").mkdir()
+    rec.save(job / "runs/seed_002/checkpoint.bin", config_hash(plain))
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="rovermarl"):
+        run_job(make_cfg(*BASE, "seeds=3"), job)
+    assert "holds seed 0, not 2; ignoring it" in caplog.text
+    fresh = run_job(make_cfg(*BASE, "seeds=1", "seed=2"), tmp_path / "fresh")
+    assert json.loads((job / "summary.json").read_text())["final_score"]["2"] == fresh["final_score"]["2"]

@@ -73,8 +73,12 @@ class RunRecord:
 
     # ---- checkpoint files -----------------------------------------------------------------------
     def save(self, path: Path, config_hash: str) -> None:
-        """Write atomically; the previous checkpoint is kept as ``<name>.prev``."""
+        """Write atomically; the previous checkpoint is kept as ``<name>.prev``. Only the generations done are
+        written, so a checkpoint grows with the generations done, not the generations asked."""
+        g = self.generation
         arrays = {key: value for key, value in self.result().items() if key != "seed"}
+        arrays["score"] = self.score[:g + 1]
+        arrays.update({key: values[:g] for key, values in self.history.items()})
         meta = {"seed": self.seed, "generations": self.generations, "generation": self.generation,
                 "config_hash": config_hash, "history_keys": list(self.history), "event_keys": list(self.events),
                 "extra_keys": sorted(self.extra),
@@ -115,12 +119,20 @@ class RunRecord:
             raise CheckpointError(f"{path}: written by a different config (hash {meta['config_hash'][:12]}, "
                                   f"expected {config_hash[:12]})")
         rec = cls(meta["seed"], meta["generations"])
-        rec.generation, rec.score = meta["generation"], arrays["score"]
-        rec.history = {key: arrays[key] for key in meta["history_keys"]}
+        rec.generation = meta["generation"]
+        rec.score[:len(arrays["score"])] = arrays["score"]
+        rec.history = {key: _full(arrays[key], rec.generations) for key in meta["history_keys"]}
         rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
         rec.events = {key: [arrays[key]] for key in meta["event_keys"]}
         rec.state = _decode(meta["state"], arrays)
         return rec
+
+
+def _full(done: np.ndarray, generations: int) -> np.ndarray:
+    """A series of the generations done (g, ...) at its full length (generations, ...); the rest is computed later."""
+    out = np.zeros((generations, *done.shape[1:]), dtype=done.dtype)
+    out[:len(done)] = done
+    return out
 
 
 def identity(path: Path) -> str | None:

@@ -63,7 +63,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         if cfg.resume:
             _set_aside_other_identity(out, key, name)
         meta = finished(out, key) if cfg.resume else None
-        if meta is not None and (problem := verify(out, meta)):
+        if meta is not None and (problem := verify(out, meta) or _no_curve(out)):
             log.warning("%s: seed %d: %s; recomputing the run", name, seed, problem)
             (out / "run.json").unlink()
             meta = None
@@ -76,6 +76,9 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             continue
         problems: list[str] = []
         rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
+        if rec is not None and rec.seed != seed:
+            problems.append(f"{out / 'checkpoint.bin'} holds seed {rec.seed}, not {seed}; ignoring it")
+            rec = None
         for problem in problems:
             log.warning("%s: %s", name, problem)
         if rec is not None:
@@ -92,8 +95,9 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     summary_path = job_dir / "summary.json"
     if not records and summary_path.exists():
         summary = json.loads(summary_path.read_text())
-        if "heldout_score" in summary:
-            return summary
+        if ("heldout_score" in summary and summary.get("seeds") == seeds and
+                set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in cfg.levels}):
+            return summary                                                 # else stale: rebuilt below
 
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         job_dir.mkdir(parents=True, exist_ok=True)
@@ -127,6 +131,15 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _no_curve(out: Path) -> str | None:
+    """What is wrong with a finished run's score curve (unreadable, or not a finite number), else None."""
+    try:
+        score = load_score(out)
+    except Exception as e:  # noqa: BLE001 - any unreadable curve is recomputed
+        return f"{out / 'curve.npz'} cannot be read ({type(e).__name__})"
+    return None if np.isfinite(score).all() else f"{out / 'curve.npz'} holds non-finite scores"
 
 
 def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
