@@ -24,6 +24,7 @@ from rovermarl import hydra_compat
 from rovermarl.algorithms.base import AlgorithmError
 from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname
 from rovermarl.errors import ConfigError
+from rovermarl.parallel import BackendError
 from rovermarl.record import lock
 from rovermarl.resources import CONF_DIR
 from rovermarl.runner.job import run_job
@@ -45,6 +46,9 @@ def task(cfg: DictConfig) -> float:
     except lock.Locked as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(BUSY)
+    except BackendError as e:
+        print(f"{PROG}: error: {name}: {e}; relaunch the same command to resume", file=sys.stderr)
+        sys.exit(1)
     except OSError as e:
         if e.errno not in STORAGE_ERRORS or os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
@@ -170,10 +174,19 @@ def _terminate(signum, frame):
 
 
 def _stop_ray() -> None:
-    """Shut down the Ray this process started or joined (no Ray process of ours outlives the driver)."""
+    """Shut down the Ray this process started or joined; then no process this driver started outlives it (Ray
+    leaves its agents behind when its GCS or raylet died)."""
     ray = sys.modules.get("ray")
-    if ray is not None and ray.is_initialized():
+    if ray is None or not ray.is_initialized():
+        return
+    import psutil
+    started = psutil.Process().children(recursive=True)
+    with contextlib.suppress(Exception):                             # a dead GCS can make the shutdown fail
         ray.shutdown()
+    _, alive = psutil.wait_procs(started, timeout=3)
+    for p in alive:
+        with contextlib.suppress(psutil.Error):
+            p.kill()
 
 
 if __name__ == "__main__":

@@ -16,6 +16,11 @@ from omegaconf import DictConfig
 OnChunk = Callable[[object, int], None]
 
 
+class BackendError(Exception):
+    """Ray failed under a job (a dead GCS, raylet or actor past its retries, or no chunk finished within
+    ``parallel.stall_timeout``); ``str(err)`` is one line naming the cause."""
+
+
 def run_records(cfg: DictConfig, job: dict, records: list, on_chunk: OnChunk, advance: Callable) -> None:
     """Advance every record to its end with ``advance`` on the backend of ``cfg.parallel``; ``job`` is the plain
     config the chunks get."""

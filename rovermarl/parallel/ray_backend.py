@@ -7,8 +7,11 @@ from __future__ import annotations
 import logging
 import os
 import socket
+import time
 
 import ray
+
+from rovermarl.parallel import BackendError
 
 log = logging.getLogger("rovermarl")
 
@@ -47,6 +50,35 @@ def _workers(n: int, retries: int, advance) -> list:
     return _POOL[:n]
 
 
+def _watched(call):
+    """``call()``, with Ray's own failures (not a chunk's exception) turned into one-line :class:`BackendError`."""
+    try:
+        return call()
+    except (ray.exceptions.RayActorError, ray.exceptions.RaySystemError, ray.exceptions.WorkerCrashedError,
+            ray.exceptions.ObjectLostError, ray.exceptions.GetTimeoutError, ConnectionError) as e:
+        first = (str(e).strip().splitlines() or [""])[0][:200]
+        raise BackendError(f"Ray failed: {type(e).__name__}: {first}") from None
+
+
+def _local_raylets() -> list:
+    """The raylet processes this driver started (an embedded Ray), to watch; none when joining a cluster."""
+    import psutil
+    return [p for p in psutil.Process().children(recursive=True) if "raylet" in p.name()]
+
+
+def _alive(raylets: list) -> None:
+    """:class:`BackendError` if Ray's GCS no longer answers or a raylet of this driver died (Ray itself would
+    keep waiting, print its C++ logs and abort this process after 60 s)."""
+    address = ray.get_runtime_context().gcs_address
+    try:
+        _probe(address, timeout=2.0)
+    except ConnectionError as e:
+        raise BackendError(f"Ray's GCS is gone: {e}") from None
+    for p in raylets:
+        if not p.is_running() or p.status() == "zombie":
+            raise BackendError(f"Ray's raylet (PID {p.pid}) died")
+
+
 def ensure_ray(ray_cfg) -> None:
     """Start an embedded local Ray, or join ``ray.address``, unless Ray already runs in this process."""
     if ray.is_initialized():
@@ -82,16 +114,29 @@ def run_ray(cfg, job: dict, records, on_chunk, advance) -> None:
     free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5), advance)
     job_cfg = ray.put(job)
     inflight = {}
+    stall = float(cfg.parallel.get("stall_timeout") or 600)
 
     def submit(rec, worker):
         inflight[worker.advance.remote(job_cfg, rec.seed, rec.state, cfg.parallel.chunk)] = rec, worker
 
     while queue and free:
         submit(queue.pop(0), free.pop())
+    last = probed = time.monotonic()
+    raylets = _local_raylets()
     while inflight:
-        [ref], _ = ray.wait(list(inflight), num_returns=1)
+        ready, _ = _watched(lambda: ray.wait(list(inflight), num_returns=1, timeout=0.5))
+        if time.monotonic() - probed > 0.5:                        # Ray would wait, dump its logs, then abort
+            _alive(raylets)
+            probed = time.monotonic()
+        if not ready:
+            if time.monotonic() - last > stall:
+                raise BackendError(f"no chunk finished in {stall:g} s (parallel.stall_timeout): Ray is stuck or "
+                                   "its processes died")
+            continue
+        last = time.monotonic()
+        [ref] = ready
         rec, worker = inflight.pop(ref)
-        on_chunk(rec, rec.add(ray.get(ref)))
+        on_chunk(rec, rec.add(_watched(lambda ref=ref: ray.get(ref))))
         if not rec.done:
             submit(rec, worker)
         elif queue:

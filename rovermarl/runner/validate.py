@@ -52,11 +52,14 @@ def validate(cfg: DictConfig) -> None:
         _flag(f"record.{key}", rec.get(key))
     errors.integer("record.every", rec.get("every"), 1)
     par = cfg.get("parallel")
-    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards"}, {"workers", "retries", "ic_shards"})
+    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards", "stall_timeout"},
+          {"workers", "retries", "ic_shards", "stall_timeout"})
     errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
     errors.integer("parallel.chunk", par.get("chunk"), 1)
     errors.integer("parallel.retries", par.get("retries", 0), 0)
     errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1)
+    if par.get("stall_timeout") is not None:
+        errors.number("parallel.stall_timeout", par.stall_timeout, 0, lo_open=True)
     if par.get("workers") is not None:
         errors.integer("parallel.workers", par.workers, 1)
     address = cfg.ray.get("address")
