@@ -1,5 +1,6 @@
 """A Ray that dies under a sweep: the driver stops in one line naming the cause and how to resume, instead of
-waiting or dumping Ray's logs; no Ray process of that driver is left."""
+waiting or dumping Ray's logs; no Ray process of that driver is left. Only the launched driver's own processes
+are touched (never another Ray on the machine)."""
 
 import os
 import signal
@@ -13,18 +14,15 @@ import pytest
 from tests.conftest import ROOT
 
 
-def _ray_procs() -> dict[int, str]:
-    out = {}
-    for p in psutil.process_iter(["pid", "cmdline"]):
-        cmd = " ".join(p.info["cmdline"] or [])
-        if "gcs_server" in cmd or "raylet" in cmd or "ray::" in cmd or "ray/_private" in cmd or "dashboard" in cmd:
-            out[p.info["pid"]] = cmd
-    return out
+def _descendants(pid: int) -> list[psutil.Process]:
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
 
 
 @pytest.mark.parametrize("victim", ["gcs_server", "raylet"])
 def test_a_dead_ray_stops_the_driver_in_one_line(tmp_path, victim):
-    before = set(_ray_procs())
     argv = [sys.executable, "-m", "rovermarl.train", "-m", "k=1,2", "setup=duo", "generations=200000", "seeds=2",
             "parallel.chunk=500", "record=off", "ray.num_cpus=2", "parallel.stall_timeout=20",
             "~hydra.callbacks.plot", f"hydra.sweep.dir={tmp_path / 'sweep'}"]
@@ -34,10 +32,11 @@ def test_a_dead_ray_stops_the_driver_in_one_line(tmp_path, victim):
     while not list(tmp_path.glob("sweep/*/runs/*")) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.1)
     time.sleep(2)
-    targets = [pid for pid, cmd in _ray_procs().items() if pid not in before and victim in cmd.split()[0]]
+    started = _descendants(proc.pid)                                   # this driver's Ray, and only it
+    targets = [p for p in started if victim in p.name()]
     assert targets, f"no {victim} of this driver found"
-    for pid in targets:
-        os.kill(pid, signal.SIGKILL)
+    for p in targets:
+        p.kill()
     try:
         _, err = proc.communicate(timeout=120)
     finally:
@@ -47,6 +46,5 @@ def test_a_dead_ray_stops_the_driver_in_one_line(tmp_path, victim):
     lines = [line for line in err.splitlines() if line.strip()]
     assert "Traceback" not in err and len(lines) <= 3, err[-3000:]
     assert lines[-1].startswith("rovermarl.train: error: ") and "relaunch the same command to resume" in lines[-1]
-    time.sleep(5)
-    left = {pid: cmd for pid, cmd in _ray_procs().items() if pid not in before}
-    assert not left, left
+    _, left = psutil.wait_procs(started, timeout=10)
+    assert not left, [(p.pid, p.name()) for p in left]

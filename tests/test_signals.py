@@ -17,13 +17,11 @@ ARGS = ("-m", "k=1,2", "setup=duo", "generations=1500", "seeds=2", "parallel.chu
         "record=off", "~hydra.callbacks.plot")
 
 
-def _ray_pids() -> set[int]:
-    out = set()
-    for p in psutil.process_iter(["pid", "cmdline"]):
-        cmd = " ".join(p.info["cmdline"] or [])
-        if "ray::" in cmd or "raylet" in cmd or "gcs_server" in cmd or "ray/_private" in cmd or "dashboard" in cmd:
-            out.add(p.info["pid"])
-    return out
+def _descendants(pid: int) -> list[psutil.Process]:
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
 
 
 def _curves(sweep):
@@ -38,13 +36,14 @@ def _curves(sweep):
 def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path, sig, code, what):
     sweep = tmp_path / "sweep"
     argv = [sys.executable, "-m", "rovermarl.train", *ARGS, "ray.num_cpus=2", f"hydra.sweep.dir={sweep}"]
-    before = _ray_pids()
     proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     deadline = time.monotonic() + 240
     while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)
     assert proc.poll() is None, "the sweep ended before the signal"
+    started = _descendants(proc.pid)                                   # this driver's Ray processes
+    assert any("raylet" in p.name() for p in started)
     if sig == signal.SIGINT:
         os.killpg(proc.pid, sig)                      # Ctrl-C reaches the whole foreground process group
     else:
@@ -54,8 +53,8 @@ def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path,
     lines = [line for line in err.splitlines() if line.strip()]
     assert "Traceback" not in err and len(lines) <= 3, err[-3000:]
     assert lines[-1] == f"rovermarl.train: {what}; relaunch the same command to resume"
-    time.sleep(3)                                     # Ray's processes exit after the driver's shutdown
-    assert not _ray_pids() - before, "Ray processes of the interrupted driver are still running"
+    _, left = psutil.wait_procs(started, timeout=10)  # Ray's processes exit with the driver's shutdown
+    assert not left, [(p.pid, p.name()) for p in left]
 
     again = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr[-3000:]
