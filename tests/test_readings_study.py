@@ -56,6 +56,7 @@ def test_report_names_budget_seeds_compute_and_the_tests(tmp_path):
 def test_reading_of_a_job_ignores_method_and_runtime_overrides():
     assert readings.reading_of(["k=1", "setup=duo", "generations=50", "record=off"]) == "spec"
     assert readings.reading_of(["env.speed=clip", "team=homogeneous", "setup=duo"]) == "env.speed=clip"
+    assert readings.reading_of(["evaluation.fresh_ic=True", "k=1"]) == "evaluation.fresh_ic=true"
     assert readings.reading_of(["mutation.sigma=0.316", "env.reward=any_step", "k=2"]) == \
         "env.reward=any_step+mutation.sigma=0.316"
 

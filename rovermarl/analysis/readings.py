@@ -55,6 +55,8 @@ NOT_READING = ("setup", "k", "team", "generations", "seeds", "seed", "parallel",
 def reading_of(overrides: list[str]) -> str:
     """The reading of a job from its overrides: ``spec``, one override, or several joined by ``+`` (sorted)."""
     keys = sorted(o for o in overrides if o.split("=", 1)[0].split(".")[0].lstrip("+~") not in NOT_READING)
+    keys = [k[:-5] + "=true" if k.endswith("=True") else k[:-6] + "=false" if k.endswith("=False") else k
+            for k in keys]                                           # Hydra writes booleans as True / False
     return "+".join(keys) or SPEC
 
 
