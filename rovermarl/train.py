@@ -129,9 +129,11 @@ def main(argv: list[str] | None = None) -> None:
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
     try:
         args, parser, cfgs = check(argv)
+        ray = sys.modules.get("ray")
+        ours = ray is None or not ray.is_initialized()              # a Ray this call starts is this call's to stop
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
             connect(cfgs)
-            _run(args, parser)
+            _run(args, parser, ours)
     except ConfigError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
@@ -140,7 +142,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(BUSY)
 
 
-def _run(args, parser) -> None:
+def _run(args, parser, stop_ray: bool = True) -> None:
     """Hydra's main, with SIGINT and SIGTERM turned into one line and Ray shut down however it ends."""
     previous = signal.signal(signal.SIGTERM, _terminate)             # after Ray's init, which sets its own
     try:
@@ -153,7 +155,8 @@ def _run(args, parser) -> None:
         sys.exit(143 if isinstance(e, Terminated) else 130)
     finally:
         signal.signal(signal.SIGTERM, previous)
-        _stop_ray()
+        if stop_ray:
+            _stop_ray()
 
 
 def _sweep_lock(args):
@@ -180,7 +183,10 @@ def _stop_ray() -> None:
     if ray is None or not ray.is_initialized():
         return
     import psutil
+
+    from rovermarl.parallel.ray_backend import forget_pool
     started = psutil.Process().children(recursive=True)
+    forget_pool()                                                    # its actors go with this Ray
     with contextlib.suppress(Exception):                             # a dead GCS can make the shutdown fail
         ray.shutdown()
     _, alive = psutil.wait_procs(started, timeout=3)

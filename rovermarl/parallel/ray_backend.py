@@ -40,6 +40,12 @@ def release_pool() -> None:
     _POOL_FN.clear()
 
 
+def forget_pool() -> None:
+    """Drop the pool's actor handles (Ray is being shut down; a later Ray starts a new pool)."""
+    _POOL.clear()
+    _POOL_FN.clear()
+
+
 def _workers(n: int, retries: int, advance) -> list:
     """``n`` actors of the pool running ``advance``, started on first use."""
     if _POOL_FN and _POOL_FN[0] is not advance:
