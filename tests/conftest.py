@@ -3,6 +3,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rovermarl.config import compose_config
@@ -27,3 +28,20 @@ def ray_session():
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
     yield ray
     ray.shutdown()
+
+
+def sweep_curves(sweep: Path) -> dict:
+    """Every run's curve.npz of a sweep: {"<job>/runs/seed_XXX/curve.npz": {key: array}}."""
+    out = {}
+    for path in sorted(Path(sweep).glob("*/runs/seed_*/curve.npz")):
+        with np.load(path) as z:
+            out[path.relative_to(sweep).as_posix()] = {k: z[k] for k in z.files}
+    return out
+
+
+def assert_same_curves(got: dict, want: dict) -> None:
+    """Two :func:`sweep_curves` results hold the same runs with bit-identical arrays."""
+    assert got.keys() == want.keys() and want
+    for key in want:
+        for name in want[key]:
+            np.testing.assert_array_equal(got[key][name], want[key][name], err_msg=f"{key}:{name}")

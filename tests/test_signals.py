@@ -7,11 +7,10 @@ import subprocess
 import sys
 import time
 
-import numpy as np
 import psutil
 import pytest
 
-from tests.conftest import ROOT, run_cli
+from tests.conftest import ROOT, assert_same_curves, run_cli, sweep_curves
 
 ARGS = ("-m", "k=1,2", "setup=duo", "generations=1500", "seeds=2", "parallel.chunk=100", "checkpoint.every=100",
         "record=off", "~hydra.callbacks.plot")
@@ -22,14 +21,6 @@ def _descendants(pid: int) -> list[psutil.Process]:
         return psutil.Process(pid).children(recursive=True)
     except psutil.NoSuchProcess:
         return []
-
-
-def _curves(sweep):
-    out = {}
-    for path in sorted(sweep.glob("*/runs/seed_*/curve.npz")):
-        with np.load(path) as z:
-            out[path.relative_to(sweep).as_posix()] = {k: z[k] for k in z.files}
-    return out
 
 
 @pytest.mark.parametrize("sig,code,what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
@@ -60,8 +51,6 @@ def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path,
     assert again.returncode == 0, again.stderr[-3000:]
     ref = run_cli(*ARGS, "parallel=serial", f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=600)
     assert ref.returncode == 0, ref.stderr[-3000:]
-    got, want = _curves(sweep), _curves(tmp_path / "ref")
-    assert got.keys() == want.keys() and len(got) == 4
-    for key in want:
-        for name in want[key]:
-            np.testing.assert_array_equal(got[key][name], want[key][name], err_msg=f"{key}:{name}")
+    got, want = sweep_curves(sweep), sweep_curves(tmp_path / "ref")
+    assert len(want) == 4
+    assert_same_curves(got, want)

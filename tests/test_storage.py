@@ -6,11 +6,10 @@ import json
 import subprocess
 import uuid
 
-import numpy as np
 import pytest
 
 from rovermarl.record.outputs import verify
-from tests.conftest import run_cli
+from tests.conftest import assert_same_curves, run_cli, sweep_curves
 
 ARGS = ("-m", "k=1,2", "setup=duo", "generations=3000", "seeds=4", "parallel=serial", "~hydra.callbacks.plot")
 
@@ -34,14 +33,6 @@ def tmpfs(tmp_path):
         subprocess.run(["umount", str(where)], capture_output=True)
 
 
-def _curves(sweep):
-    out = {}
-    for path in sorted(sweep.glob("*/runs/seed_*/curve.npz")):
-        with np.load(path) as z:
-            out[path.relative_to(sweep).as_posix()] = {k: z[k] for k in z.files}
-    return out
-
-
 def test_a_full_disk_stops_in_one_line_and_the_relaunch_completes(tmpfs, tmp_path):
     disk = tmpfs("3m")
     sweep = disk / "sweep"
@@ -60,11 +51,9 @@ def test_a_full_disk_stops_in_one_line_and_the_relaunch_completes(tmpfs, tmp_pat
         assert verify(run, json.loads((run / "run.json").read_text())) is None
     ref = run_cli(*ARGS, f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=300)
     assert ref.returncode == 0
-    got, want = _curves(sweep), _curves(tmp_path / "ref")
-    assert got.keys() == want.keys()
-    for key in want:
-        for name in want[key]:
-            np.testing.assert_array_equal(got[key][name], want[key][name], err_msg=f"{key}:{name}")
+    got, want = sweep_curves(sweep), sweep_curves(tmp_path / "ref")
+    assert len(want) == 8
+    assert_same_curves(got, want)
 
 
 def test_a_read_only_output_dir_is_refused_before_any_work(tmpfs):
