@@ -47,6 +47,11 @@ def kernel_inputs(world, seed: int = 0):
             float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
 
 
+def with_modes(rollout, args):
+    """The current kernel also takes ``speed_mode, reward_mode`` (the SPEC reading: 0, 0); 4c4ae3c's does not."""
+    return args + (0, 0) if rollout is kernel.rollout else args
+
+
 def run_kernel(rollout, args, record: bool):
     """One rollout; returns (returns, traj_xy, traj_heading, final_xy) (empty arrays where not recorded)."""
     e, n = args[2].shape
@@ -55,13 +60,14 @@ def run_kernel(rollout, args, record: bool):
         outs = (np.empty(e), np.empty((e, steps + 1, n, 2)), np.empty((e, steps + 1, n)), np.empty((e, n, 2)))
     else:
         outs = (np.empty(e), np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)), np.empty((0, 1, 2)))
-    rollout(*args, *outs)
+    rollout(*with_modes(rollout, args), *outs)
     return outs
 
 
 def kernel_seconds(rollout, args, n: int) -> np.ndarray:
     """[CPU, wall] seconds for ``n`` fused rollouts (returns only, as in an evaluation)."""
     returns, no_xy, no_h, no_final = run_kernel(rollout, args, record=False)
+    args = with_modes(rollout, args)
     c, w = time.process_time(), time.perf_counter()
     for _ in range(n):
         rollout(*args, returns, no_xy, no_h, no_final)
