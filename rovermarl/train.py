@@ -44,22 +44,26 @@ def task(cfg: DictConfig) -> float:
     try:
         return run_job(cfg, Path(hc.runtime.output_dir), name=name, choices=choices)["median_final_score"]
     except lock.Locked as e:
-        print(f"{PROG}: error: {e}", file=sys.stderr)
-        sys.exit(BUSY)
+        raise Stop(f"{PROG}: error: {e}", BUSY) from None
     except BackendError as e:
-        print(f"{PROG}: error: {name}: {e}; relaunch the same command to resume", file=sys.stderr)
-        sys.exit(1)
+        raise Stop(f"{PROG}: error: {name}: {e}; relaunch the same command to resume") from None
     except OSError as e:
         if e.errno not in STORAGE_ERRORS or os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
-        print(f"{PROG}: error: {name}: cannot write {e.filename or 'a result file'}: {e.strerror}; fix it and relaunch "
-              "the same command to resume", file=sys.stderr)
-        sys.exit(1)
+        raise Stop(f"{PROG}: error: {name}: cannot write {e.filename or 'a result file'}: {e.strerror}; fix it and "
+                   "relaunch the same command to resume") from None
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
         cause = getattr(e, "cause", None) or e
-        print(f"{PROG}: error: {name}: {' '.join(str(cause).split())}", file=sys.stderr)
-        sys.exit(1)
+        raise Stop(f"{PROG}: error: {name}: {' '.join(str(cause).split())}") from None
 
+
+class Stop(SystemExit):
+    """The launch ends with one line on stderr and ``code``; :func:`_run` prints it once Ray is down, so that nothing
+    Ray logs while it shuts down comes after it."""
+
+    def __init__(self, line: str, code: int = 1):
+        super().__init__(code)
+        self.line = line
 
 def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser, list[DictConfig]]:
     """Parse, compose and validate every job of ``argv`` (already quoted); raises ConfigError.
@@ -145,19 +149,24 @@ def main(argv: list[str] | None = None) -> None:
 def _run(args, parser, stop_ray: bool = True) -> None:
     """Hydra's main, with SIGINT and SIGTERM turned into one line and Ray shut down however it ends."""
     previous = signal.signal(signal.SIGTERM, _terminate)             # after Ray's init, which sets its own
+    stop = None
     try:
         hydra_compat.run(args, parser, task, str(CONF_DIR))
     except KeyboardInterrupt as e:
         if os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
         what = "terminated" if isinstance(e, Terminated) else "interrupted"
-        print(f"{PROG}: {what}; relaunch the same command to resume", file=sys.stderr)
-        sys.exit(143 if isinstance(e, Terminated) else 130)
+        stop = Stop(f"{PROG}: {what}; relaunch the same command to resume", 143 if isinstance(e, Terminated) else 130)
+    except Stop as e:
+        stop = e
     finally:
         signal.signal(signal.SIGTERM, previous)
         if stop_ray:
-            _stop_ray()
-
+            with _quiet_stderr() if stop else contextlib.nullcontext():   # Ray's shutdown after a fault is noise
+                _stop_ray()
+    if stop:
+        print(stop.line, file=sys.stderr)
+        sys.exit(stop.code)
 
 def _sweep_lock(args):
     """The launch holds its output dir's lock (the sweep dir of a multirun, each job then its own job dir's too, in
@@ -174,6 +183,20 @@ class Terminated(KeyboardInterrupt):
 def _terminate(signum, frame):
     signal.signal(signal.SIGTERM, signal.SIG_IGN)                    # once: the unwinding may take a moment
     raise Terminated()
+
+
+@contextlib.contextmanager
+def _quiet_stderr():
+    """File descriptor 2 to /dev/null for a while (Ray's C++ core writes there directly)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 2)
+    try:
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 def _stop_ray() -> None:
