@@ -151,6 +151,14 @@ class Algorithm:
         raise NotImplementedError
 
 
+def generator(state: dict) -> np.random.Generator:
+    """A generator continuing from a bit-generator ``state`` (of any numpy bit generator): how a run's RNG streams
+    live in its plain-dict state."""
+    bit = getattr(np.random, state["bit_generator"])()
+    bit.state = state
+    return np.random.Generator(bit)
+
+
 def build_operator(node, group: str, **context):
     """Instantiate config ``node`` of ``group`` (``_target_`` plus keywords, and ``context`` such as N); bad values
     raise :class:`~rovermarl.errors.ConfigError` with the key under ``group`` (``gamma`` -> ``k.gamma``)."""

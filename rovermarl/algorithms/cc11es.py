@@ -16,7 +16,7 @@ import copy
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator
+from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator, generator
 
 
 class CC11ES(Algorithm):
@@ -68,7 +68,7 @@ class CC11ES(Algorithm):
         team, mutate, accept = self.composition, self.mutate, self.accept
         selector = copy.deepcopy(self.selector)
         selector.load_state_dict(state["selector"])
-        rng_mut, rng_sel = _generator(state["rng_mut"]), _generator(state["rng_sel"])
+        rng_mut, rng_sel = generator(state["rng_mut"]), generator(state["rng_sel"])
         parents, f_parent = np.array(state["parents"], dtype=np.float64), float(state["score"])
         h = {s.name: s.empty(n) for s in self.series}
         score = np.empty(n)
@@ -103,10 +103,3 @@ class CC11ES(Algorithm):
                                  f"{', '.join(map(str, sorted(self.allowed)))} (its arms within 1..N="
                                  f"{self.world.n_rovers})")
         return k
-
-
-def _generator(state: dict) -> np.random.Generator:
-    """A generator continuing from a bit-generator ``state`` (of any numpy bit generator)."""
-    bit = getattr(np.random, state["bit_generator"])()
-    bit.state = state
-    return np.random.Generator(bit)

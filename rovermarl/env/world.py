@@ -217,23 +217,30 @@ class World:
         return out
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:
-        """Team return of one set of positions (SPEC section 1): xy (..., N, 2) -> (...,). It is the episode's
+        """Team return of one set of positions (SPEC section 1): xy (..., M, 2) -> (...,). It is the episode's
         return under ``reward="final"`` (xy after the last step); the per-step readings combine it over the steps
-        (:meth:`episode_return`)."""
+        (:meth:`episode_return`). ``M`` is any number of rovers: the team's N, or a counterfactual team (one rover
+        removed, partners added: :mod:`rovermarl.algorithms.credit`).
+
+        >>> w = make_world("duo")
+        >>> w.team_return(np.array([[13.0, 0.0], [12.5, 0.5], [0.0, 0.0]])).item()    # M = 3: both on duo POI 0
+        3.0
+        """
         xy = np.ascontiguousarray(xy, dtype=np.float64)
-        if xy.ndim < 2 or xy.shape[-2:] != (self.n_rovers, 2):
-            raise ValueError(f"xy must have shape (..., {self.n_rovers}, 2), got {xy.shape}")
+        if xy.ndim < 2 or xy.shape[-1] != 2:
+            raise ValueError(f"xy must have shape (..., M, 2), got {xy.shape}")
         out = np.empty(xy.shape[:-2])
-        kernel.reward(xy.reshape(-1, self.n_rovers, 2), self.poi_xy, self._coupling, self._value,
+        kernel.reward(xy.reshape(-1, *xy.shape[-2:]), self.poi_xy, self._coupling, self._value,
                       float(self.obs_radius), out.reshape(-1))
         return out
 
     def episode_return(self, xy: np.ndarray) -> np.ndarray:
-        """Episode returns under this world's ``reward`` reading from trajectories xy (..., T+1, N, 2) (index 0 the
-        start, which no reading scores) -> (...,); the same numbers as :meth:`returns`."""
+        """Episode returns under this world's ``reward`` reading from trajectories xy (..., T+1, M, 2) (index 0 the
+        start, which no reading scores; ``M`` rovers as in :meth:`team_return`) -> (...,); for the team's own
+        trajectories the same numbers as :meth:`returns`."""
         xy = np.asarray(xy, dtype=np.float64)
-        if xy.ndim < 3 or xy.shape[-3:] != (self.steps + 1, self.n_rovers, 2):
-            raise ValueError(f"xy must have shape (..., {self.steps + 1}, {self.n_rovers}, 2), got {xy.shape}")
+        if xy.ndim < 3 or xy.shape[-3] != self.steps + 1 or xy.shape[-1] != 2:
+            raise ValueError(f"xy must have shape (..., {self.steps + 1}, M, 2), got {xy.shape}")
         if self.reward == "final":
             return self.team_return(xy[..., -1, :, :])
         flat = np.ascontiguousarray(xy.reshape(-1, *xy.shape[-3:]))

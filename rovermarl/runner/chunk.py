@@ -119,6 +119,12 @@ class Evaluation:
         self.calls += 1
         return self.world.evaluate(genomes, self.ic, self.final_xy)
 
+    def rollout(self, genomes: np.ndarray):
+        """One team evaluation with its whole trajectories (:class:`~rovermarl.env.Rollout`: xy (E, T+1, N, 2),
+        heading (E, T+1, N), returns (E,)): what a learner that credits rovers by counterfactuals needs."""
+        self.calls += 1
+        return self.world.rollout(genomes, self.ic)
+
 
 class Run:
     """One run in this process. ``Run(cfg, seed)`` starts it (evaluating the initial team); ``state=`` continues

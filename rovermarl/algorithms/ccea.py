@@ -1,0 +1,117 @@
+"""The classic rover-domain CCEA, a baseline: one population of ``pop_size`` genomes per rover, teams formed by
+shuffling the populations, each member scored by its team's credit (G, D or D++; :mod:`~rovermarl.algorithms.credit`).
+
+One generation (after the AADI lab's rover-domain CCEA; our own code):
+
+1. each population is shuffled; team j takes the j-th member of every population (``pop_size`` teams);
+2. each team is evaluated on the run's initial conditions, and each member gets its rover's credit of that team,
+   averaged over the episodes (``reward``: ``global`` = F itself, ``difference``, ``dpp``);
+3. each population keeps its ``elites`` best members unchanged (slot 0 the best) and fills the other slots by binary
+   tournament (two distinct members, the fitter wins, a tie by a coin), then mutates them (the ``mutation`` group);
+4. the team of the elites (each population's best of step 2) is evaluated: its F is the score curve, as comparable
+   with CC-(1+1)-ES's as its team is.
+
+A generation therefore costs ``pop_size + 1`` team evaluations; the ``team_evals`` series counts them (the initial
+team's included) so that curves can be compared at equal evaluations. The default ``pop_size`` of 10 is the AADI
+code's usual population for rover teams of this size.
+
+Run state (a plain dict): ``pops`` (N, pop_size, P), ``score`` (the elites team's F), ``best`` (the best score so
+far: the behaviour observer logs new bests), ``evals`` (team evaluations so far) and the bit-generator state ``rng``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rovermarl import errors
+from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator, generator
+from rovermarl.algorithms.credit import CREDITS, credit
+
+
+class CCEA(Algorithm):
+    """Built from ``conf/algorithm/ccea.yaml``: ``pop_size``, ``elites``, ``reward`` (one of
+    :data:`~rovermarl.algorithms.credit.CREDITS`), the ``mutation`` node and the initial genome range."""
+
+    def __init__(self, world, mutation, pop_size: int = 10, elites: int = 1, reward: str = "global",
+                 init_low: float = -2.0, init_high: float = 2.0):
+        super().__init__(world)
+        self.pop_size = errors.integer("pop_size", pop_size, 2, 100_000)
+        self.elites = errors.integer("elites", elites, 1, self.pop_size - 1)   # slot 0: the best
+        self.reward = errors.choice("reward", reward, CREDITS)
+        self.low = errors.number("policy.init_low", init_low)
+        self.high = errors.number("policy.init_high", init_high)
+        if self.high <= self.low:
+            raise errors.ConfigError("policy.init_high", self.high, f"must be greater than policy.init_low={self.low}")
+        self.mutate = build_operator(mutation, "mutation")
+        self.series = (
+            Series("team_evals", "int64", doc="team evaluations so far, the initial team's included"),
+            Series("fitness", "float64", (world.n_rovers,), np.nan, "each population's best fitness (its credit)",
+                   tuple(f"rover{i}" for i in range(world.n_rovers))),
+        )
+
+    def _init(self, seeds, evaluate):
+        s_init, s_run = seeds.spawn(2)
+        size = (self.world.n_rovers, self.pop_size, self.world.n_params)
+        pops = np.random.default_rng(s_init).uniform(self.low, self.high, size)
+        score = evaluate(_elites(pops))
+        return {"pops": pops, "score": score, "best": score, "evals": 1,
+                "rng": np.random.default_rng(s_run).bit_generator.state}, score
+
+    def _team(self, state):
+        return _elites(state["pops"])
+
+    def _advance(self, state, generation, n, evaluate, observer):
+        if self.reward != "global" and not hasattr(evaluate, "rollout"):
+            raise AlgorithmError(f"ccea with reward={self.reward} needs whole trajectories, which this evaluation "
+                                 f"({type(evaluate).__name__}) does not give; use parallel.ic_shards=1")
+        rng = generator(state["rng"])
+        pops, best, evals = np.array(state["pops"], dtype=np.float64), float(state["best"]), int(state["evals"])
+        score, h = np.empty(n), {s.name: s.empty(n) for s in self.series}
+        for t in range(n):
+            teams = np.argsort(rng.random((self.world.n_rovers, self.pop_size)), axis=1)   # 1. shuffle
+            fitness = self._fitness(pops, teams, evaluate)                                  # 2. credit
+            pops, h["fitness"][t] = self._select(pops, fitness, rng)                        # 3. select, mutate
+            team = _elites(pops)
+            f = evaluate(team)                                                              # 4. the elites team
+            evals += self.pop_size + 1
+            observer.accepted(generation + t + 1, team, f, f > best)
+            best = max(best, f)
+            score[t], h["team_evals"][t] = f, evals
+        state = {"pops": pops, "score": score[-1] if n else state["score"], "best": best, "evals": evals,
+                 "rng": rng.bit_generator.state}
+        return state, {"score": score, **h}
+
+    def _fitness(self, pops, teams, evaluate) -> np.ndarray:
+        """Each member's credit (N, pop_size) from the teams (N, pop_size): team j is member ``teams[r, j]`` of
+        every population r."""
+        rovers = np.arange(self.world.n_rovers)
+        fitness = np.empty(teams.shape)
+        for j in range(self.pop_size):
+            genomes = pops[rovers, teams[:, j]]
+            if self.reward == "global":
+                fitness[rovers, teams[:, j]] = evaluate(genomes)
+            else:
+                roll = evaluate.rollout(genomes)
+                fitness[rovers, teams[:, j]] = credit(self.reward, self.world, roll.xy, roll.returns).mean(axis=1)
+        return fitness
+
+    def _select(self, pops, fitness, rng) -> tuple[np.ndarray, np.ndarray]:
+        """The next populations (elites first, then mutated tournament winners) and each population's best fitness
+        (N,). pops (N, pop_size, P), fitness (N, pop_size)."""
+        rovers, size, e = self.world.n_rovers, self.pop_size, self.elites
+        order = np.argsort(-fitness, axis=1, kind="stable")                      # best first, ties by index
+        a = rng.integers(0, size, (rovers, size - e))
+        b = (a + rng.integers(1, size, (rovers, size - e))) % size              # a distinct rival
+        fa, fb = np.take_along_axis(fitness, a, 1), np.take_along_axis(fitness, b, 1)
+        winner = np.where(fa > fb, a, np.where(fa < fb, b, np.where(rng.random(a.shape) < 0.5, a, b)))
+        out = np.empty_like(pops)
+        for r in range(rovers):
+            out[r, :e] = pops[r, order[r, :e]]
+            for s in range(size - e):
+                out[r, e + s] = self.mutate(pops[r, winner[r, s]], rng)
+        return out, fitness[np.arange(rovers), order[:, 0]]
+
+
+def _elites(pops: np.ndarray) -> np.ndarray:
+    """The team of each population's best: slot 0 of pops (N, pop_size, P) -> genomes (N, P)."""
+    return np.ascontiguousarray(pops[:, 0])

@@ -1,0 +1,94 @@
+"""Credit of each rover for a team's episodes: the global reward G, the difference reward D (Agogino and Tumer) and
+D++ (Rahmattalabi et al., 2016), from trajectories and the world's own reward reading.
+
+Shapes: E episodes, T steps, N rovers; trajectories xy (E, T+1, N, 2) as :meth:`World.rollout
+<rovermarl.env.World.rollout>` returns them. Each credit is (N, E): rover i's credit in episode e.
+
+- ``G``: the team return, the same for every rover.
+- ``D_i = G(z) - G(z_{-i})``: the team return minus the return of the team with rover i removed.
+- ``D++_i``: D_i when adding N - 1 copies of rover i (counterfactual partners on its trajectory) does not earn more
+  per partner than D_i; else the gain per partner with the fewest partners ``n`` (1 <= n < N - 1) that beats the
+  gain per partner with N - 1 of them, or that one if none does. ``gain(n) = (G(z + n copies of i) - G(z)) / n``.
+  This is the published algorithm as the AADI lab's rover-domain code implements it.
+
+Counterfactual teams are scored by :meth:`World.episode_return <rovermarl.env.World.episode_return>`, which takes
+any number of rovers, so every world reading (``env.reward``) credits its own way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+CREDITS = ("global", "difference", "dpp")
+
+
+def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+
+    >>> from rovermarl.env import make_world
+    >>> w = make_world("duo", n_rovers=2, steps=1)
+    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [12.5, 0.0]]]])   # E = 1: both end on duo POI 0
+    >>> global_reward(w, xy).tolist()
+    [[3.0], [3.0]]
+    """
+    g = world.episode_return(xy) if g is None else g
+    return np.broadcast_to(g, (xy.shape[-2], g.shape[0])).copy()
+
+
+def without(xy: np.ndarray) -> np.ndarray:
+    """The N teams with one rover removed: xy (E, T+1, N, 2) -> (N, E, T+1, N-1, 2), team i without rover i."""
+    n = xy.shape[-2]
+    keep = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
+    return np.stack([xy[:, :, keep[i]] for i in range(n)])
+
+
+def with_partners(xy: np.ndarray, n: int) -> np.ndarray:
+    """The N teams with ``n`` counterfactual partners of one rover (copies of its trajectory) added:
+    xy (E, T+1, N, 2) -> (N, E, T+1, N+n, 2), team i with n copies of rover i."""
+    rovers = xy.shape[-2]
+    own = np.moveaxis(xy, -2, 0)[:, :, :, None, :]                       # (N, E, T+1, 1, 2)
+    team = np.broadcast_to(xy, (rovers, *xy.shape))
+    return np.concatenate([team, np.repeat(own, n, axis=-2)], axis=-2)
+
+
+def difference(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """D: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+
+    >>> from rovermarl.env import make_world
+    >>> w = make_world("duo", n_rovers=2, steps=1)
+    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [12.5, 0.0]]]])   # both end on duo POI 0
+    >>> difference(w, xy).tolist()                                                  # each is needed
+    [[3.0], [3.0]]
+    """
+    g = world.episode_return(xy) if g is None else g
+    return g[None, :] - world.episode_return(without(xy))
+
+
+def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """D++: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+
+    >>> from rovermarl.env import make_world
+    >>> w = make_world("duo", n_rovers=2, steps=1)
+    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [0.0, 0.0]]]])     # rover 0 alone on duo POI 0
+    >>> difference(w, xy).tolist(), dpp(w, xy).tolist()                             # D sees nothing; D++ sees 3
+    ([[0.0], [0.0]], [[3.0], [0.0]])
+    """
+    g = world.episode_return(xy) if g is None else g
+    d = difference(world, xy, g)
+    rovers = xy.shape[-2]
+    if rovers < 2:
+        return d
+    gain = np.stack([(world.episode_return(with_partners(xy, n)) - g[None, :]) / n for n in range(1, rovers)])
+    most = gain[-1]                                                       # (N, E): N - 1 partners
+    out = most.copy()
+    decided = np.zeros(most.shape, dtype=bool)
+    for n in range(1, rovers - 1):                                        # the fewest partners that beat N - 1
+        better = ~decided & (gain[n - 1] > most)
+        out[better] = gain[n - 1][better]
+        decided |= better
+    return np.where(most <= d, d, out)
+
+
+def credit(name: str, world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
+    """The credit ``name`` (one of :data:`CREDITS`): xy (E, T+1, N, 2) -> (N, E)."""
+    return {"global": global_reward, "difference": difference, "dpp": dpp}[name](world, xy, g)

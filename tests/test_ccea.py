@@ -1,0 +1,116 @@
+"""The CCEA baseline and its credits: G, D and D++ against hand-computed values on hand-built positions; the runs
+resume bit-identically, count their team evaluations, and run through the CLI with figures and recordings."""
+
+import json
+
+import numpy as np
+import pytest
+
+from rovermarl.algorithms import credit
+from rovermarl.env import make_world
+from rovermarl.runner import Run
+from rovermarl.runner.chunk import advance, to_plain
+from tests.conftest import make_cfg, run_cli, sweep_curves
+
+FAR = (0.0, 0.0)                                  # the centre: 13 from every POI, within obs_radius of none
+DUO0, DUO5, SOLO1 = (13.0, 0.0), (-13.0, 0.0), (13 * np.cos(0.2 * np.pi), 13 * np.sin(0.2 * np.pi))
+
+
+def final(world, *ends):
+    """A trajectory (E=1, T+1, N, 2) whose rovers sit at the centre until the last step, then at ``ends``."""
+    xy = np.zeros((1, world.steps + 1, world.n_rovers, 2))
+    xy[0, -1] = ends
+    return xy
+
+
+@pytest.mark.parametrize("ends,g,d,dpp", [
+    ((DUO0, FAR, FAR, FAR), 0, [0, 0, 0, 0], [3, 0, 0, 0]),            # alone on a duo POI: D 0, D++ one partner 3
+    ((DUO0, DUO0, FAR, FAR), 3, [3, 3, 0, 0], [3, 3, 0, 0]),           # the pair: each is needed, D++ = D
+    ((DUO0, DUO0, DUO0, FAR), 3, [0, 0, 0, 0], [0, 0, 0, 0]),          # three on it: no one is needed, no gain
+    ((SOLO1, FAR, FAR, FAR), 1, [1, 0, 0, 0], [1, 0, 0, 0]),           # a solo POI: D 1; partners add nothing
+    ((DUO0, DUO5, SOLO1, SOLO1), 1, [0, 0, 0, 0], [3, 3, 0, 0]),       # two lonely duo rovers; two on one solo POI
+])
+def test_difference_and_dpp_hand_computed_duo(ends, g, d, dpp):
+    w = make_world("duo")
+    xy = final(w, *ends)
+    assert credit.global_reward(w, xy)[:, 0].tolist() == [g] * 4
+    assert credit.difference(w, xy)[:, 0].tolist() == d
+    assert credit.dpp(w, xy)[:, 0].tolist() == dpp
+
+
+def test_dpp_takes_the_fewest_partners_that_beat_the_most_trio():
+    w = make_world("trio")                                   # POI 0 needs 3 rovers and is worth 4
+    xy = final(w, DUO0, DUO0, FAR, FAR)
+    assert credit.difference(w, xy)[:, 0].tolist() == [0, 0, 0, 0]
+    # rover 0 with 3 partners: 4/3 per partner; with 1 partner 3 rovers are there: 4/1 = 4 beats 4/3
+    assert credit.dpp(w, xy)[:, 0].tolist() == [4, 4, 0, 0]
+    alone = final(w, DUO0, FAR, FAR, FAR)                    # alone: 1 partner earns nothing, 2 earn 4/2 = 2 > 4/3
+    assert credit.dpp(w, alone)[:, 0].tolist() == [2, 0, 0, 0]
+
+
+def test_credits_follow_the_world_reading():
+    w = make_world("duo", reward="any_step")                 # the pair meets at step 1 only, then leaves
+    xy = final(w, FAR, FAR, FAR, FAR)
+    xy[0, 1, :2] = DUO0
+    assert credit.global_reward(w, xy)[0, 0] == 3 and make_world("duo").episode_return(xy)[0] == 0
+    assert credit.difference(w, xy)[:, 0].tolist() == [3, 3, 0, 0]
+
+
+def test_counterfactual_teams_have_the_right_rovers():
+    xy = np.arange(1 * 2 * 3 * 2, dtype=float).reshape(1, 2, 3, 2)
+    out = credit.without(xy)
+    assert out.shape == (3, 1, 2, 2, 2) and (out[1] == xy[:, :, [0, 2]]).all()
+    out = credit.with_partners(xy, 2)
+    assert out.shape == (3, 1, 2, 5, 2) and (out[2, :, :, :3] == xy).all() and (out[2, :, :, 3:] == xy[:, :, 2:3]).all()
+
+
+@pytest.mark.parametrize("reward", ["global", "difference", "dpp"])
+def test_ccea_resumes_bit_identically_and_counts_evaluations(reward):
+    cfg = make_cfg("algorithm=ccea", f"algorithm.reward={reward}", "algorithm.pop_size=4", "setup=duo",
+                   "generations=30", "record=off")
+    plain = to_plain(cfg)
+    whole = advance(plain, 3, None, 30)
+    first = advance(plain, 3, None, 12)
+    rest = advance(plain, 3, first["state"], 30)
+    assert np.array_equal(np.concatenate([first["score"], rest["score"]]), whole["score"])
+    for name in ("team_evals", "fitness"):
+        assert np.array_equal(np.concatenate([first["series"][name], rest["series"][name]]), whole["series"][name])
+    assert whole["series"]["team_evals"].tolist() == [1 + 5 * (g + 1) for g in range(30)]
+    assert whole["evaluations"] == 1 + 5 * 30                    # what the runner counts: the same
+    team = np.asarray(whole["genomes"])
+    assert make_world("duo").evaluate(team, make_world("duo").run_ic(3)) == whole["score"][-1]
+
+
+def test_ccea_learns_under_each_reward():
+    scores = {}
+    for reward in ("global", "difference", "dpp"):
+        run = Run(make_cfg("algorithm=ccea", f"algorithm.reward={reward}", "setup=solo", "generations=150",
+                           "record=off"), 0)
+        scores[reward] = (run.initial_score, run.advance(150)["score"][-20:].max())
+    assert all(after > before for before, after in scores.values()), scores
+
+
+def test_bad_ccea_values_get_one_line(tmp_path):
+    for arg, key in (("algorithm.reward=shaped", "algorithm.reward"), ("algorithm.pop_size=1", "algorithm.pop_size"),
+                     ("algorithm.elites=0", "algorithm.elites")):
+        out = run_cli("algorithm=ccea", arg, "parallel=serial", f"hydra.run.dir={tmp_path / 'x'}")
+        assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and key in out.stderr, out.stderr
+
+
+def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path, ray_session):
+    sweep = tmp_path / "sweep"
+    args = ("-m", "algorithm=ccea", "algorithm.reward=global,difference,dpp", "setup=duo", "generations=100",
+            "seeds=2", "ray.num_cpus=2", f"hydra.sweep.dir={sweep}")
+    out = run_cli(*args, "generations=60", timeout=600)       # an earlier, shorter launch: its runs are resumed
+    assert out.returncode == 0, out.stderr[-2000:]
+    out = run_cli(*args, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    curves = sweep_curves(sweep)
+    assert len(curves) == 2 * 3 * 2                          # 60- and 100-generation jobs, 3 rewards, 2 seeds
+    for key, c in curves.items():
+        g = 60 if "generations=60" in key else 100
+        assert c["score"].shape == (g + 1,) and c["team_evals"][-1] == 1 + 11 * g
+    assert sorted(p.name for p in (sweep / "figures").glob("*.png"))
+    for run in sweep.glob("*/runs/seed_*"):
+        meta = json.loads((run / "run.json").read_text())
+        assert (run / "run.rrd").stat().st_size > 0 and meta["generations"] in (60, 100)
