@@ -1,0 +1,189 @@
+"""The rover world as a PettingZoo environment, for any learner (RLlib, BenchMARL, TorchRL, CleanRL-style scripts).
+
+==================== ===========================================================================================
+Import               ``from rovermarl.pettingzoo import parallel_env, env``
+Actions              Continuous
+Parallel API         Yes
+Manual control       No
+Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by default)
+Action shape         (2,): ``(a0, a1)`` in [-1, 1] (speed, turn; SPEC section 3), clipped to that box
+Action values        ``Box(-1, 1, (2,), float64)``
+Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2)
+Observation values   ``Box`` of float64: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
+Episode              ``env.steps`` (15) steps, then every agent is truncated; no termination
+Reward               the team's, the same for every agent (SPEC section 1, ``env.reward``): ``final`` pays the team
+                     return at the last step and 0 before; a per-step reading pays the growth of its running value
+                     (``mean_step``: each step's return / T), so the rewards sum to the episode's return
+==================== ===========================================================================================
+
+``parallel_env(setup="duo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
+the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``n_rovers``, ``steps``, ...). ``reset(seed=s)``
+starts from ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those
+initial conditions in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws
+the next start from a stream of the last seed. Each step runs the world's own compiled stages
+(:mod:`rovermarl.env.kernel.stages`, ``move`` then ``sense``), the rollout's dynamics, one implementation.
+
+``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
+so far in the world's reading (the episode's return after the last step, bit-identical to ``World.returns``), and
+``step``. ``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib.
+
+>>> from rovermarl.pettingzoo import parallel_env
+>>> e = parallel_env("duo")
+>>> obs, infos = e.reset(seed=0)
+>>> e.agents, obs["rover_0"].shape
+(['rover_0', 'rover_1', 'rover_2', 'rover_3'], (38,))
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from gymnasium import spaces
+from pettingzoo import ParallelEnv
+from pettingzoo.utils.conversions import parallel_to_aec
+
+from rovermarl.env import World, kernel, make_world
+
+ACTION_LOW, ACTION_HIGH = -1.0, 1.0
+
+
+def parallel_env(setup: str = "duo", render_mode: str | None = None, **overrides) -> RoverParallelEnv:
+    """The parallel environment of ``setup`` with World field ``overrides`` (e.g. ``reward="any_step"``)."""
+    return RoverParallelEnv(make_world(setup, **overrides), render_mode=render_mode)
+
+
+def env(setup: str = "duo", render_mode: str | None = None, **overrides):
+    """The AEC environment: :func:`parallel_env` through PettingZoo's ``parallel_to_aec``."""
+    return parallel_to_aec(parallel_env(setup, render_mode=render_mode, **overrides))
+
+
+class RoverParallelEnv(ParallelEnv):
+    """One episode of one rover team at a time, on a :class:`~rovermarl.env.World`."""
+
+    metadata = {"name": "rovermarl_rovers_v0", "render_modes": ["rgb_array"], "is_parallelizable": True,
+                "render_fps": 4}
+
+    def __init__(self, world: World, render_mode: str | None = None):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        self.world, self.render_mode = world, render_mode
+        self.possible_agents = [f"rover_{i}" for i in range(world.n_rovers)]
+        self.agents: list[str] = []
+        kinds = np.abs(world.poi_sensor_type).max(initial=1.0)
+        low = np.full(world.obs_dim, -1.0)
+        high = np.ones(world.obs_dim)
+        low[2:3 * world.n_pois:3], high[2:3 * world.n_pois:3] = -kinds, kinds   # the POI type slots
+        self._obs_space = spaces.Box(low, high, dtype=np.float64)
+        self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=np.float64)
+        self._mode = kernel.REWARDS.index(world.reward)
+        self._coupling, self._value = np.array(world.coupling, np.int64), np.array(world.value, np.float64)
+        self._type = world.poi_sensor_type
+        self._rng = np.random.default_rng()
+        self.t = 0
+
+    def observation_space(self, agent: str) -> spaces.Box:
+        return self._obs_space
+
+    def action_space(self, agent: str) -> spaces.Box:
+        return self._act_space
+
+    # ---- episode ---------------------------------------------------------------------------------------------
+    def reset(self, seed: int | None = None, options: dict | None = None):
+        """Start an episode: from ``World.initial_conditions(seed=seed, n=1)``, or the next start of the stream of
+        the last seed. Returns observations and infos per agent."""
+        if seed is not None:
+            xy, heading = self.world.initial_conditions(seed=seed, n=1)
+            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
+        else:
+            xy, heading = self.world.initial_conditions(self._rng, n=1)
+        w = self.world
+        self.xy, self.heading = xy, heading                                  # (1, N, 2), (1, N)
+        self.path = np.empty((w.steps + 1, w.n_rovers, 2))
+        self.path[0] = xy[0]
+        self.t, self.value = 0, 0.0
+        self.agents = list(self.possible_agents)
+        self._count = np.empty((1, w.n_pois), np.int64)
+        self._step, self._acc = np.empty(1), np.full(1, -np.inf if w.reward == "best_step" else 0.0)
+        self._peak = np.zeros((1, w.n_pois), np.int64)
+        return self._observe(), self._infos()
+
+    def step(self, actions: dict):
+        """Move every rover by its action ``(a0, a1)`` (a missing agent's is (0, 0): straight on at half speed in
+        the ``affine`` reading); returns observations, rewards, terminations, truncations and infos."""
+        if not self.agents:
+            raise RuntimeError("the episode is over: call reset()")
+        w = self.world
+        a = np.zeros((1, w.n_rovers, 2))
+        for i, agent in enumerate(self.possible_agents):
+            if agent in actions:
+                a[0, i] = np.clip(np.asarray(actions[agent], dtype=np.float64).reshape(2), ACTION_LOW, ACTION_HIGH)
+        if not np.isfinite(a).all():
+            raise ValueError("actions must be finite numbers")
+        kernel.move(self.xy, self.heading, a, float(w.v_max), w.w_max, kernel.SPEEDS.index(w.speed))
+        self.t += 1
+        self.path[self.t] = self.xy[0]
+        before, self.value = self.value, self._running_return()
+        done = self.t == w.steps
+        reward = self.value - before if self._mode != 0 else self.value if done else 0.0
+        agents = self.agents
+        out = (self._observe(), dict.fromkeys(agents, reward), dict.fromkeys(agents, False),
+               dict.fromkeys(agents, done), self._infos())
+        if done:
+            self.agents = []
+        return out
+
+    def _running_return(self) -> float:
+        """The team's return so far in the world's reading (after the last step: the episode's return)."""
+        w = self.world
+        if self._mode == 0:                                                    # final: the positions now
+            return float(w.team_return(self.xy)[0])
+        kernel.fold(self._mode, self.xy, w.poi_xy, self._coupling, self._value, float(w.obs_radius), self._count,
+                    self._step, self._peak, self._acc)
+        out = np.empty(1)
+        kernel.settle(self._mode, w.steps, self._coupling, self._value, self._peak, self._acc, out)
+        return float(out[0])
+
+    def _observe(self) -> dict:
+        w = self.world
+        obs = np.empty((1, w.n_rovers, w.obs_dim))
+        kernel.sense(self.xy, self.heading, w.poi_xy, self._type, float(w.sensor_range), obs)
+        return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
+
+    def _infos(self) -> dict:
+        w = self.world
+        count = np.zeros((1, w.n_pois), np.int64)
+        kernel.observers(self.xy, w.poi_xy, float(w.obs_radius), count)
+        info = {"occupancy": count[0], "return": self.value, "step": self.t}
+        return {agent: dict(info) for agent in self.possible_agents}
+
+    # ---- drawing ---------------------------------------------------------------------------------------------
+    def render(self):
+        """An (H, W, 3) uint8 image of the POIs and the rovers' paths so far (``render_mode="rgb_array"``)."""
+        if self.render_mode != "rgb_array":
+            return None
+        from rovermarl.analysis.draw import new_figure, scene
+        fig = new_figure(4.0, 4.0)
+        ax = fig.add_subplot()
+        lim = self.world.poi_distance + 2 * self.world.obs_radius
+        scene(ax, self.world, self.path[None, : self.t + 1], lim, lw=1.5, ms=6)
+        ax.set_title(f"step {self.t}/{self.world.steps}   return {self.value:g}", fontsize=9)
+        fig.canvas.draw()
+        image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+        return image
+
+    def close(self):
+        pass
+
+
+def genome_policy(world: World, genomes: np.ndarray):
+    """Actions of a team of genomes (N, P) through the world's MLP (the rollout's compiled ``act``): a function of
+    an observation dict, returning an action dict (bit-identical to what :meth:`World.rollout` does)."""
+    genomes = np.ascontiguousarray(genomes, dtype=np.float64)
+    agents = [f"rover_{i}" for i in range(world.n_rovers)]
+
+    def policy(observations: dict) -> dict:
+        obs = np.stack([observations[a] for a in agents])[None]               # (1, N, D)
+        out = np.empty((1, world.n_rovers, 2))
+        kernel.act(genomes, np.ascontiguousarray(obs), world.hidden, out)
+        return {a: out[0, i] for i, a in enumerate(agents)}
+
+    return policy

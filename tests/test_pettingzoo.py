@@ -1,0 +1,96 @@
+"""The PettingZoo environment: PettingZoo's own API tests, and a team of genomes driven through it gets exactly
+World.evaluate's returns on the same initial conditions, under every world reading."""
+
+import numpy as np
+import pytest
+from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+
+from rovermarl.env import make_world
+from rovermarl.pettingzoo import env, genome_policy, parallel_env
+from rovermarl.runner import Run
+from tests.conftest import make_cfg
+
+
+def test_parallel_api_test_passes():
+    parallel_api_test(parallel_env("duo"), num_cycles=100)
+
+
+def test_aec_api_test_passes():
+    api_test(env("duo"), num_cycles=100)
+
+
+def test_seeding_is_deterministic():
+    parallel_seed_test(lambda: parallel_env("solo"))
+
+
+@pytest.fixture(scope="module")
+def trained():
+    """A team of genomes that reaches POIs: 300 generations of CC-(1+1)-ES on duo."""
+    run = Run(make_cfg("setup=duo", "generations=300", "record=off"), 0)
+    run.advance(300)
+    return run.team
+
+
+def episode(e, policy, seed):
+    obs, infos = e.reset(seed=seed)
+    rewards = []
+    while e.agents:
+        obs, rew, term, trunc, infos = e.step(policy(obs))
+        rewards.append(rew["rover_0"])
+        assert len(set(rew.values())) == 1 and not any(term.values())
+    assert all(trunc.values())
+    return np.array(rewards), infos
+
+
+@pytest.mark.parametrize("overrides", [{}, {"reward": "any_step"}, {"reward": "best_step"},
+                                       {"reward": "mean_step", "speed": "clip", "poi_type": "value"},
+                                       {"poi_type": "sign"}])
+def test_a_genome_team_gets_exactly_the_worlds_returns(overrides, trained):
+    world = make_world("duo", **overrides)
+    rng = np.random.default_rng(5)
+    got, want = [], []
+    for seed in range(12):
+        genomes = trained + rng.normal(0, 0.05 * (seed % 3), trained.shape)   # a trained team, and neighbours
+        e = parallel_env("duo", **overrides)
+        rewards, infos = episode(e, genome_policy(world, genomes), seed)
+        ic = world.initial_conditions(seed=seed, n=1)
+        want.append(world.returns(genomes, ic)[0])
+        got.append(infos["rover_0"]["return"])
+        assert np.isclose(rewards.sum(), got[-1], rtol=0, atol=1e-12)
+        if world.reward == "final":
+            assert (rewards[:-1] == 0).all()
+        traj = world.rollout(genomes, ic)                         # the same path, step by step
+        assert np.array_equal(e.path, traj.xy[0])
+    assert got == want                                           # bit for bit
+    assert len(set(want)) > 1 and max(want) > 0                  # the check saw different, non-zero returns
+
+
+def test_infos_and_actions():
+    e = parallel_env("duo", n_rovers=2, steps=3)
+    obs, infos = e.reset(seed=1)
+    assert e.possible_agents == ["rover_0", "rover_1"] and obs["rover_1"].shape == (3 * 10 + 2 * 2,)
+    assert infos["rover_0"]["occupancy"].shape == (10,) and infos["rover_0"]["step"] == 0
+    before = e.xy.copy()
+    e.step({"rover_0": np.array([5.0, 0.0], np.float32)})        # clipped to 1; rover_1 gets (0, 0)
+    moved = np.linalg.norm(e.xy[0] - before[0], axis=1)
+    assert np.isclose(moved[0], 1.0) and np.isclose(moved[1], 0.5)
+    with pytest.raises(ValueError, match="finite"):
+        e.step({"rover_0": [np.nan, 0.0]})
+
+
+def test_occupancy_counts_rovers_at_pois():
+    e = parallel_env("duo")
+    e.reset(seed=0)
+    e.xy[0, :2] = e.world.poi_xy[0]
+    infos = e._infos()
+    assert infos["rover_3"]["occupancy"][0] == 2 and infos["rover_3"]["occupancy"].sum() == 2
+
+
+def test_render_draws_an_image():
+    e = parallel_env("solo", render_mode="rgb_array")
+    assert parallel_env("solo").render() is None
+    e.reset(seed=0)
+    e.step({a: np.array([1.0, 0.0]) for a in e.agents})
+    image = e.render()
+    assert image.dtype == np.uint8 and image.ndim == 3 and image.shape[2] == 3
+    assert len(np.unique(image.reshape(-1, 3), axis=0)) > 5      # more than a blank canvas
