@@ -1,4 +1,5 @@
-"""Figures: ``python -m rovermarl.plot PATH [--out DIR] [--threshold SETUP=VALUE ...] [--format ...] [--xscale log]``.
+"""Figures: ``python -m rovermarl.plot PATH [--out DIR] [--threshold SETUP=VALUE ...] [--format ...] [--xscale log]
+[--x evals]``.
 
 Draws the paper's figures from a finished (or partly finished) sweep, one job dir, or exported results
 (``results/paper``) into ``PATH/figures/`` (see :mod:`rovermarl.analysis.figures`). Bad input exits with
@@ -53,6 +54,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--format", nargs="+", choices=("png", "pdf", "svg"), default=list(FORMATS), dest="formats")
     p.add_argument("--xscale", choices=("linear", "log"), default="linear",
                    help="generation axes: linear, or log (generation 0 included)")
+    p.add_argument("--x", choices=("auto", "generation", "evals"), default="auto", dest="x",
+                   help="score curves against generations or team evaluations (auto: evaluations when the methods "
+                        "of a setup spend different numbers per generation, e.g. cc11es against ccea)")
     p.add_argument("--update-run", type=Path, default=None, metavar="RUN_DIR",
                    help="run dir (runs/seed_XXX) whose behaviour.npz the update figure shows")
     p.add_argument("--update-gen", type=int, default=None, metavar="G",
@@ -67,7 +71,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
     try:
         index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
-                           args.update_gen, log=log, xscale=args.xscale)
+                           args.update_gen, log=log, xscale=args.xscale, x=args.x)
     except SweepError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)

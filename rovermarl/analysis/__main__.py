@@ -7,6 +7,8 @@
 - ``selectors RESULTS_DIR [--against METHOD]``: the k-selector comparison; ``selectors.md`` and ``.json``.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
+- ``baselines {export SWEEP_DIR RESULTS_DIR, report RESULTS_DIR}``: the baselines study, CC-(1+1)-ES against the
+  CCEA with G, D and D++ (see :mod:`rovermarl.analysis.baselines`).
 
 Bad input exits with status 2 and one line on stderr.
 """
@@ -48,6 +50,9 @@ def parser() -> argparse.ArgumentParser:
     r = sub.add_parser("readings", help="the readings study: export a sweep, its lifting readings, the report")
     r.add_argument("action", choices=("export", "lifting", "report"))
     r.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; lifting, report: RESULTS_DIR")
+    b = sub.add_parser("baselines", help="the baselines study: export a sweep, the report")
+    b.add_argument("action", choices=("export", "report"))
+    b.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; report: RESULTS_DIR")
     return p
 
 
@@ -64,6 +69,8 @@ def main(argv=None) -> None:
             print(text, end="")
         elif args.command == "readings":
             _readings(args.action, args.paths)
+        elif args.command == "baselines":
+            _baselines(args.action, args.paths)
         else:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against)
@@ -73,13 +80,27 @@ def main(argv=None) -> None:
         sys.exit(2)
 
 
+def _paths(study: str, action: str, paths: list[Path]) -> None:
+    want = 2 if action == "export" else 1
+    if len(paths) != want:
+        print(f"{PROG}: error: {study} {action} takes {want} path(s), got {len(paths)}", file=sys.stderr)
+        sys.exit(2)
+
+
+def _baselines(action: str, paths: list[Path]) -> None:
+    from rovermarl.analysis import baselines
+
+    _paths("baselines", action, paths)
+    if action == "export":
+        baselines.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+    else:
+        print(baselines.report(paths[0])[0], end="")
+
+
 def _readings(action: str, paths: list[Path]) -> None:
     from rovermarl.analysis import readings
 
-    want = 2 if action == "export" else 1
-    if len(paths) != want:
-        print(f"{PROG}: error: readings {action} takes {want} path(s), got {len(paths)}", file=sys.stderr)
-        sys.exit(2)
+    _paths("readings", action, paths)
     if action == "export":
         readings.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
     elif action == "lifting":

@@ -8,7 +8,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from matplotlib.figure import Figure
 
-from rovermarl.analysis.draw import line, new_figure, panels
+from rovermarl.analysis.draw import downsample, line, new_figure, panels
 from rovermarl.analysis.levels import QUARTILES, quartile_times
 from rovermarl.analysis.sweep import Job, labels
 from rovermarl.record.outputs import first_reaching
@@ -30,49 +30,74 @@ def quartile_generations(scores: Sequence[np.ndarray], level: float,
     return [None if np.isinf(t) else int(t) for t in quartile_times(first, quartiles)]
 
 
-def _runs_panel(ax, job: Job, label: str, colour: str, threshold: float | None) -> list[int | None]:
-    """Every run's curve of ``job``; dotted lines (thin, bold, thin) at the quartile generations."""
+XLABEL = {"generation": "generation", "evals": "team evaluations"}
+
+
+def x_axis(jobs: Sequence[Job], x: str = "auto") -> str:
+    """``generation`` or ``evals``; ``auto``: team evaluations when the jobs spend different numbers per generation
+    (CC-(1+1)-ES against the CCEA), so that equal budgets line up."""
+    if x != "auto":
+        return x
+    return "evals" if len({j.evals_per_generation for j in jobs}) > 1 else "generation"
+
+
+def _curve(ax, job: Job, y: np.ndarray, x: str, **kw) -> None:
+    """y (G+1,) of ``job`` against generations or team evaluations (downsampled)."""
+    g, y = downsample(y)
+    line(ax, y, x=g if x == "generation" else job.evals(g), **kw)
+
+
+def _at(job: Job, generation: float, x: str) -> float:
+    return generation if x == "generation" else float(job.evals(generation))
+
+
+def _runs_panel(ax, job: Job, label: str, colour: str, threshold: float | None,
+                x: str = "generation") -> list[int | None]:
+    """Every run's curve of ``job``; dotted lines (thin, bold, thin) at the quartile generations (drawn at their
+    team evaluations when ``x="evals"``)."""
     scores = [r.score for r in job.runs]
     for s in scores:
-        line(ax, s, color=colour, lw=0.7, alpha=0.6)
+        _curve(ax, job, s, x, color=colour, lw=0.7, alpha=0.6)
     ax.set_title(f"{label}: {len(scores)} runs" + ("" if job.finished else " (unfinished)"), fontsize=9)
-    ax.set_xlabel("generation")
+    ax.set_xlabel(XLABEL[x])
     if threshold is None:
         return []
     quart = quartile_generations(scores, threshold)
     for g, lw in zip(quart, (0.8, 2.0, 0.8), strict=True):
         if g is not None:
-            ax.axvline(g, color="k", ls=":", lw=lw)
+            ax.axvline(_at(job, g, x), color="k", ls=":", lw=lw)
     ax.axhline(threshold, color="0.5", lw=0.5, ls="--")
     return quart
 
 
-def _top(ax, title: str) -> None:
-    ax.set(title=title, xlabel="generation", ylabel="median score")
+def _top(ax, title: str, x: str = "generation") -> None:
+    ax.set(title=title, xlabel=XLABEL[x], ylabel="median score")
     ax.legend(fontsize=8, loc="lower right")
 
 
-def fig_curves(setup: str, jobs: Sequence[Job], threshold: float | None) -> tuple[Figure, dict]:
+def fig_curves(setup: str, jobs: Sequence[Job], threshold: float | None, x: str = "auto") -> tuple[Figure, dict]:
     """Figs. 4/5/8: medians on top (fixed-k methods faded when a bandit is present), with a diamond at the last
-    generation for the median held-out score of the final teams (jobs that recorded one); runs below."""
-    labs = labels(jobs)
+    generation for the median held-out score of the final teams (jobs that recorded one); runs below. ``x``:
+    ``generation``, ``evals`` (team evaluations) or ``auto`` (:func:`x_axis`)."""
+    labs, x = labels(jobs), x_axis(jobs, x)
     fig, top, bottom = panels(len(jobs))
     fade = any(j.bandit for j in jobs)
     quart, held = {}, {}
     for i, (job, lab, ax) in enumerate(zip(jobs, labs, bottom, strict=True)):
         colour = f"C{i % 10}"
         median = median_curve([r.score for r in job.runs])
-        line(top, median, color=colour, label=lab, alpha=1.0 if job.bandit or not fade else 0.35, lw=1.5)
+        _curve(top, job, median, x, color=colour, label=lab, alpha=1.0 if job.bandit or not fade else 0.35, lw=1.5)
         held[lab] = job.heldout()
         if held[lab] is not None:
-            top.plot([len(median) - 1], [held[lab]], marker="D", ms=5, color=colour, ls="none", clip_on=False)
-        quart[lab] = _runs_panel(ax, job, lab, colour, threshold)
+            top.plot([_at(job, len(median) - 1, x)], [held[lab]], marker="D", ms=5, color=colour, ls="none",
+                     clip_on=False)
+        quart[lab] = _runs_panel(ax, job, lab, colour, threshold, x)
     bottom[0].set_ylabel("score")
     note = f"; dotted: 1/4, 1/2, 3/4 of runs reach {threshold:g}" if threshold is not None else ""
     note += "; diamonds: median held-out score" if any(v is not None for v in held.values()) else ""
-    _top(top, f"{setup}: median score{note}")
+    _top(top, f"{setup}: median score{note}", x)
     return fig, {"methods": labs, "threshold": threshold, "quartile_generations": quart,
-                 "median_heldout_score": held}
+                 "median_heldout_score": held, "x": x}
 
 
 def fig_soft_vs_strict(setup: str, pairs: Sequence[tuple[Job, Job]], threshold: float | None) -> tuple[Figure, dict]:

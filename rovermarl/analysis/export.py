@@ -38,7 +38,7 @@ def coupling(curve, episodes: int) -> dict | None:
     return out
 
 
-def _compute(job: Job) -> dict:
+def compute_of(job: Job) -> dict:
     """Team evaluations and wall time of every launch of the job (``invocations.jsonl``; else summary.json)."""
     log = job.path / "invocations.jsonl"
     launches = [json.loads(x) for x in log.read_text().splitlines() if x.strip()] if log.is_file() else []
@@ -72,12 +72,14 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
         if c is not None:
             couplings[str(r.seed)] = c
     summary = json.loads((job.path / "summary.json").read_text()) if job.finished else {}
-    compute = _compute(job)
+    compute = compute_of(job)
     compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
                     "episodes": episodes, "source": job.name, "compute": compute})
     if couplings:
         summary["coupling"] = couplings
+    if job.evals_per_generation != 1:                                # read back by Job.evals_per_generation
+        summary["evals_per_generation"] = job.evals_per_generation
     out.mkdir(parents=True, exist_ok=True)
     with atomic_open(out / "curves.npz") as f:
         np.savez_compressed(f, **arrays)

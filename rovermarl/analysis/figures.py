@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from rovermarl.analysis.behaviour_figures import fig_occupancy, fig_update, pick_run, pick_update
-from rovermarl.analysis.curve_figures import fig_bandit, fig_curves, fig_soft_vs_strict
+from rovermarl.analysis.curve_figures import XLABEL, fig_bandit, fig_curves, fig_soft_vs_strict
 from rovermarl.analysis.draw import FORMATS, save
 from rovermarl.analysis.fig6 import fig_fig6, fig_switched
 from rovermarl.analysis.levels import threshold_for
@@ -104,11 +104,13 @@ def _fig6(path: Path, jobs: Sequence[Job], xscale: str, notes: list[str]) -> tup
 
 def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float] | None = None,
                formats: Sequence[str] = FORMATS, update_run: Path | None = None, update_gen: int | None = None,
-               log=None, xscale: str = "linear") -> dict:
+               log=None, xscale: str = "linear", x: str = "auto") -> dict:
     """Draw every figure of the sweep (or job) dir ``path`` into ``out`` (default ``path/figures``).
 
     ``path`` may also be a results dir of :mod:`rovermarl.analysis.results`; it adds the Fig. 6 and C8
-    figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included).
+    figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included). ``x``:
+    the score curves' x-axis, ``generation``, ``evals`` (team evaluations) or ``auto`` (evaluations when a setup's
+    jobs spend different numbers per generation).
 
     Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
     """
@@ -125,7 +127,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
         name = kind + "_" + re.sub(r"[^\w.-]+", "_", setup)
         if xscale == "log":
             for ax in fig.axes:
-                if ax.get_xlabel() == "generation" or ax.get_shared_x_axes().get_siblings(ax) != [ax]:
+                if ax.get_xlabel() in XLABEL.values() or ax.get_shared_x_axes().get_siblings(ax) != [ax]:
                     ax.set_xscale("symlog", linthresh=1)
                     ax.set_xlim(left=0)
         panels = sum(1 for ax in fig.axes if not hasattr(ax, "_colorbar"))
@@ -139,7 +141,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
             notes.append(f"{setup}: no threshold (pass --threshold {setup}=VALUE); no quartile lines")
         pairs = soft_strict_pairs(group)
         paired = {id(strict) for _, strict in pairs}                   # drawn in soft_vs_strict instead
-        emit("curves", setup, fig_curves(setup, [j for j in group if id(j) not in paired], threshold))
+        emit("curves", setup, fig_curves(setup, [j for j in group if id(j) not in paired], threshold, x))
         if pairs:
             emit("soft_vs_strict", setup, fig_soft_vs_strict(setup, pairs, threshold))
         if bandits := [j for j in group if j.bandit]:

@@ -187,7 +187,8 @@ def report(results: Path) -> tuple[str, dict]:
             numbers[j["job"]] = {k: v if isinstance(v, float) else v.as_dict() for k, v in row.items()}
             numbers[j["job"]]["vs_spec"] = test.as_dict() if test else None
             lines.append(f"| {_label(j['reading'])} | {j['method']} | {row['final'].fmt()} | "
-                         f"{row['final_step'].fmt()} | {_count(row['at5'], n)} | {_count(row['at6'], n)} | "
+                         f"{row['final_step'].fmt()} | {stats.format_count(row['at5'], n)} | "
+                         f"{stats.format_count(row['at6'], n)} | "
                          f"{row['t4'].fmt(None)} | {row['t5'].fmt(None)} | "
                          f"{f'p{stats.format_p(test.p)}, P(a>b)={test.effect:.2f}' if test else '-'} | "
                          f"{row['heldout']:.3g} |")
@@ -209,7 +210,3 @@ def report(results: Path) -> tuple[str, dict]:
 
 def _label(reading: str) -> str:
     return " + ".join(f"`{r}`" for r in reading.split("+")) if reading != SPEC else "SPEC"
-
-
-def _count(est: stats.Estimate, n: int) -> str:
-    return f"{round(est.value * n)}/{n} [{est.low:.2f}, {est.high:.2f}]"

@@ -103,6 +103,11 @@ def mann_whitney(x, y) -> Test:
     return Test(float(res.statistic), float(res.pvalue), float(res.statistic) / (len(x) * len(y)))
 
 
+def format_count(est: Estimate, n: int) -> str:
+    """A Wilson estimate of ``n`` runs as ``k/n [low, high]``."""
+    return f"{round(est.value * n)}/{n} [{est.low:.2f}, {est.high:.2f}]"
+
+
 def format_p(p: float) -> str:
     return "<1e-4" if p < 1e-4 else f"={p:.2g}"
 

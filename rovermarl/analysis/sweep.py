@@ -27,6 +27,7 @@ from rovermarl.env import World, make_world
 NOT_METHOD = ("parallel", "ray", "hydra", "setup", "record", "checkpoint", "resume")
 
 
+CREDIT_LABELS = {"global": "G", "difference": "D", "dpp": "D++"}   # algorithm.reward of the ccea baseline
 RUN_DIR = re.compile(r"seed_\d+")   # a run's dir; seed_XXX.<hash> holds one set aside under another identity
 
 
@@ -91,8 +92,37 @@ class Job:
         return f"k={option}" if re.fullmatch(r"\d+", str(option)) else str(option)
 
     @property
+    def algorithm(self) -> str:
+        """The ``algorithm`` option (``cc11es`` for configs from before the group)."""
+        return str(self.choices.get("algorithm") or "cc11es")
+
+    @property
     def base_label(self) -> str:
+        """``k=1``, ``adaptive``, ``homogeneous`` for CC-(1+1)-ES; another algorithm's name, with its reward if it
+        has one (``ccea D++``)."""
+        if self.algorithm != "cc11es":
+            reward = (self.config.get("algorithm") or {}).get("reward")
+            return self.algorithm + (f" {CREDIT_LABELS.get(reward, reward)}" if reward else "")
         return "homogeneous" if self.homogeneous else self.k_name
+
+    @property
+    def evals_per_generation(self) -> float:
+        """Team evaluations per generation: an exported job's ``summary.json`` says it; a run that records the
+        ``team_evals`` series (algorithms that spend more than one per generation) gives it; else 1, or 2 under
+        ``evaluation.fresh_ic`` (CC-(1+1)-ES re-scores the parents)."""
+        given = (_read_json(self.path / "summary.json") or {}).get("evals_per_generation")
+        if given is not None:
+            return float(given)
+        for run in self.runs[:1]:
+            if run.has("curve.npz"):
+                with np.load(run.path / "curve.npz") as curve:
+                    if "team_evals" in curve and len(curve["team_evals"]):
+                        return float(curve["team_evals"][-1] - 1) / len(curve["team_evals"])
+        return 2.0 if (self.config.get("evaluation") or {}).get("fresh_ic") else 1.0
+
+    def evals(self, generations) -> np.ndarray:
+        """Team evaluations spent after ``generations`` (the initial team's one included)."""
+        return 1 + self.evals_per_generation * np.asarray(generations, dtype=np.float64)
 
     @property
     def label(self) -> str:
@@ -103,7 +133,11 @@ class Job:
         k = self.k_name
         kind = 1 if self.homogeneous else 0 if k.startswith("k=") else 2
         value = int(k[2:]) if kind == 0 else 0
-        return setup_rank(self.setup), self.setup, kind, value, k, self.strict, self.name
+        other = self.algorithm != "cc11es"                         # other algorithms after CC-(1+1)-ES
+        credit = list(CREDIT_LABELS).index(r) if (r := (self.config.get("algorithm") or {}).get("reward")) in \
+            CREDIT_LABELS else 9
+        return (setup_rank(self.setup), self.setup, other, self.algorithm if other else "", credit, kind, value, k,
+                self.strict, self.name)
 
     def keyed_overrides(self) -> set[str]:
         """``key=value`` items that may tell this job from another of the same setup."""

@@ -1,0 +1,68 @@
+"""The baselines study: launchers/baselines.sh at a tiny budget (equal team evaluations for cc11es and ccea, the
+report's table, figures against team evaluations), and docs/BASELINES.md against the committed results."""
+
+import json
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+
+from rovermarl.analysis import baselines
+from tests.conftest import ROOT
+
+COMMITTED = ROOT / "results" / "baselines"
+DOC = ROOT / "docs" / "BASELINES.md"
+BLOCK = re.compile(r"<!-- baselines:begin -->\n(.*?)<!-- baselines:end -->", re.S)
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("baselines")
+    env = {**os.environ, "PYTHON": sys.executable, "EVALS": "111", "SEEDS": "2", "SETUPS": "duo",
+           "OUT": str(tmp / "sweep"), "RESULTS": str(tmp / "results")}
+    proc = subprocess.run(["bash", "launchers/baselines.sh", "parallel=serial"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return tmp
+
+
+def test_every_method_gets_the_same_budget_of_team_evaluations(study):
+    jobs = json.loads((study / "results" / "baselines.json").read_text())["jobs"]
+    assert [j["method"] for j in jobs] == ["k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++"]
+    for j in jobs:
+        ccea = j["method"].startswith("ccea")
+        assert j["evals_per_generation"] == (11 if ccea else 1)
+        assert j["generations"] == (10 if ccea else 111)              # ceil((111 - 1) / 11) = 10
+        assert j["team_evals_per_run"] == 111 if ccea else 112       # the initial team's evaluation included
+        assert len(j["runs"]) == 2 and j["compute"]["team_evals"] >= 2 * j["team_evals_per_run"]
+        for run in j["runs"].values():
+            for evals in run["evals_to"].values():
+                assert evals is None or (evals - 1) % j["evals_per_generation"] == 0
+
+
+def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
+    text, numbers = baselines.report(study / "results")
+    rows = [line for line in text.splitlines() if line.startswith("| ") and "---" not in line]
+    assert len(rows) == 1 + 6 and "vs k=1" in rows[0] and "evals to 6" in rows[0]
+    assert rows[1].split("|")[-3].strip() == "-"                          # k=1 is not tested against itself
+    assert all("P(a>b)=" in r for r in rows[2:])
+    assert (study / "results" / "baselines.md").read_text() == text
+
+
+def test_the_figures_put_team_evaluations_on_the_x_axis(study):
+    index = json.loads((study / "sweep" / "figures" / "index.json").read_text())
+    curves = [f for f in index["figures"] if f["kind"] == "curves"]
+    assert curves and all(f["x"] == "evals" for f in curves)
+    assert {"ccea G", "ccea D", "ccea D++", "k=1"} <= set(curves[0]["methods"])
+
+
+def test_the_doc_table_is_the_committed_results_report():
+    block = BLOCK.search(DOC.read_text())
+    if not (COMMITTED / "baselines.json").is_file():                # the study has not been committed yet
+        assert block is None and "not yet run" in DOC.read_text()
+        return
+    assert block is not None, "docs/BASELINES.md has no <!-- baselines:begin/end --> block"
+    text, _ = baselines.report(COMMITTED)
+    assert block.group(1) == text
