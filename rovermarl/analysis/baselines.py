@@ -20,7 +20,7 @@ import numpy as np
 from rovermarl.analysis import stats
 from rovermarl.analysis.export import compute_of
 from rovermarl.analysis.levels import setup_rank
-from rovermarl.analysis.results import ResultsError
+from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.record.outputs import first_reaching
 
@@ -62,11 +62,7 @@ def _method_rank(method: str) -> tuple:
 
 
 def _load(results: Path) -> list[dict]:
-    path = Path(results) / "baselines.json"
-    try:
-        return json.loads(path.read_text())["jobs"]
-    except (OSError, ValueError, KeyError) as e:
-        raise ResultsError(f"{path}: no baselines results ({type(e).__name__}); run `export` first") from None
+    return load_study(results, "baselines")
 
 
 def _finals(job: dict) -> np.ndarray:

@@ -24,7 +24,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl.analysis import stats
-from rovermarl.analysis.results import ResultsError
+from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.env import World
 
@@ -115,11 +115,7 @@ def _rank(reading: str) -> tuple:
 
 
 def _load(results: Path) -> list[dict]:
-    path = Path(results) / "readings.json"
-    try:
-        return json.loads(path.read_text())["jobs"]
-    except (OSError, ValueError, KeyError) as e:
-        raise ResultsError(f"{path}: no readings results ({type(e).__name__}); run `export` first") from None
+    return load_study(results, "readings")
 
 
 def _values(job: dict, what: str) -> np.ndarray:

@@ -8,7 +8,7 @@ the claims and figures need, in a few MB, with the same job-dir layout::
     RESULTS_DIR/<job>/config.yaml    the job's composed config
     RESULTS_DIR/<job>/curves.npz     seed (R,); generations (); grid (M,) log-spaced generations, score (R, M) there;
                                      the exact curves as change points: step_run (S,), step_generation (S,),
-                                     step_score (S,) (a parent score never falls, so these few points are lossless);
+                                     step_score (S,) (lossless for any curve; few points for a parent score, which never falls);
                                      probs (R, M, K) float32 on the grid (bandit jobs only)
     RESULTS_DIR/fig6.npz             one duo k=1 run's data for the Fig. 6-style figure (see
                                      :func:`rovermarl.analysis.export.export_fig6`)
@@ -67,3 +67,12 @@ def load(path: Path) -> list[Result]:
     if not out:
         raise ResultsError(f"no exported job (*/curves.npz) in {path}; run `python -m rovermarl.analysis export`")
     return out
+
+
+def load_study(results: Path, name: str) -> list[dict]:
+    """The jobs of a study's compact numbers, ``RESULTS/<name>.json`` (the readings and baselines studies)."""
+    path = Path(results) / f"{name}.json"
+    try:
+        return json.loads(path.read_text())["jobs"]
+    except (OSError, ValueError, KeyError) as e:
+        raise ResultsError(f"{path}: no {name} results ({type(e).__name__}); run `export` first") from None
