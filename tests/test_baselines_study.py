@@ -58,6 +58,19 @@ def test_the_figures_put_team_evaluations_on_the_x_axis(study):
     assert {"ccea G", "ccea D", "ccea D++", "k=1"} <= set(curves[0]["methods"])
 
 
+def test_the_method_comparison_measures_in_team_evaluations(study):
+    from rovermarl.analysis.claims import selectors
+    from rovermarl.analysis.export import export
+    export(study / "sweep", study / "exported", fig6=False, log=lambda m: None)
+    text, data = selectors(study / "exported", against="k=1", x="evals")
+    assert text.startswith("Budget: 112 team evaluations per run; scores at 1, 11, 112 team evaluations")
+    assert "median team evaluations to 5" in text and "team evaluations to 5 vs k=1" in text
+    rows = data["tables"]["duo"]
+    assert set(rows) == {"k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++"}
+    generations, _ = selectors(study / "exported", against="k=1")
+    assert generations.startswith("Budget: 111 generations per run")
+
+
 def test_the_doc_table_is_the_committed_results_report():
     block = BLOCK.search(DOC.read_text())
     if not (COMMITTED / "baselines.json").is_file():                # the study has not been committed yet

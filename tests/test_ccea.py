@@ -1,7 +1,11 @@
 """The CCEA baseline and its credits: G, D and D++ against hand-computed values on hand-built positions; the runs
 resume bit-identically, count their team evaluations, and run through the CLI with figures and recordings."""
 
-import json
+import os
+import signal
+import subprocess
+import sys
+import time
 
 import numpy as np
 import pytest
@@ -10,7 +14,7 @@ from rovermarl.algorithms import credit
 from rovermarl.env import make_world
 from rovermarl.runner import Run
 from rovermarl.runner.chunk import advance, to_plain
-from tests.conftest import make_cfg, run_cli, sweep_curves
+from tests.conftest import ROOT, assert_same_curves, make_cfg, run_cli, sweep_curves
 
 FAR = (0.0, 0.0)                                  # the centre: 13 from every POI, within obs_radius of none
 DUO0, DUO5, SOLO1 = (13.0, 0.0), (-13.0, 0.0), (13 * np.cos(0.2 * np.pi), 13 * np.sin(0.2 * np.pi))
@@ -97,20 +101,31 @@ def test_bad_ccea_values_get_one_line(tmp_path):
         assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and key in out.stderr, out.stderr
 
 
-def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path, ray_session):
-    sweep = tmp_path / "sweep"
+def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
+    """The issue's command on Ray, interrupted (SIGINT) after its first checkpoint and relaunched, equals an
+    uninterrupted serial run; figures and recordings are written."""
     args = ("-m", "algorithm=ccea", "algorithm.reward=global,difference,dpp", "setup=duo", "generations=100",
-            "seeds=2", "ray.num_cpus=2", f"hydra.sweep.dir={sweep}")
-    out = run_cli(*args, "generations=60", timeout=600)       # an earlier, shorter launch: its runs are resumed
+            "seeds=2", "checkpoint.every=10", "parallel.chunk=10")
+    sweep = tmp_path / "sweep"
+    argv = [sys.executable, "-m", "rovermarl.train", *args, "ray.num_cpus=2", f"hydra.sweep.dir={sweep}"]
+    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + 240
+    while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before the interruption"
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err[-2000:]
+    out = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=600)   # the relaunch resumes
     assert out.returncode == 0, out.stderr[-2000:]
-    out = run_cli(*args, timeout=600)
-    assert out.returncode == 0, out.stderr[-2000:]
-    curves = sweep_curves(sweep)
-    assert len(curves) == 2 * 3 * 2                          # 60- and 100-generation jobs, 3 rewards, 2 seeds
-    for key, c in curves.items():
-        g = 60 if "generations=60" in key else 100
-        assert c["score"].shape == (g + 1,) and c["team_evals"][-1] == 1 + 11 * g
-    assert sorted(p.name for p in (sweep / "figures").glob("*.png"))
+    ref = run_cli(*args, "parallel=serial", f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=600)
+    assert ref.returncode == 0, ref.stderr[-2000:]
+    got = sweep_curves(sweep)
+    assert len(got) == 3 * 2
+    assert_same_curves(got, sweep_curves(tmp_path / "ref"))
+    for c in got.values():
+        assert c["score"].shape == (101,) and c["team_evals"][-1] == 1 + 11 * 100
+    assert sorted(p.name for p in (sweep / "figures").glob("curves_*.png")) == ["curves_duo.png"]
     for run in sweep.glob("*/runs/seed_*"):
-        meta = json.loads((run / "run.json").read_text())
-        assert (run / "run.rrd").stat().st_size > 0 and meta["generations"] in (60, 100)
+        assert (run / "run.rrd").stat().st_size > 0 and (run / "behaviour.npz").is_file()

@@ -4,7 +4,8 @@
   (see :mod:`rovermarl.analysis.export`).
 - ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
   (see :mod:`rovermarl.analysis.claims`).
-- ``selectors RESULTS_DIR [--against METHOD]``: the k-selector comparison; ``selectors.md`` and ``.json``.
+- ``selectors RESULTS_DIR [--against METHOD] [--x evals]``: the k-selector (or any method) comparison;
+  ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
 - ``baselines {export SWEEP_DIR RESULTS_DIR, report RESULTS_DIR}``: the baselines study, CC-(1+1)-ES against the
@@ -47,6 +48,8 @@ def parser() -> argparse.ArgumentParser:
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
     s.add_argument("results", type=Path, help="results dir written by `export`")
     s.add_argument("--against", default="adaptive", help="method the others are tested against")
+    s.add_argument("--x", choices=("generation", "evals"), default="generation", dest="x",
+                   help="budgets and times in generations or in team evaluations (methods of different cost)")
     r = sub.add_parser("readings", help="the readings study: export a sweep, its lifting readings, the report")
     r.add_argument("action", choices=("export", "lifting", "report"))
     r.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; lifting, report: RESULTS_DIR")
@@ -73,7 +76,7 @@ def main(argv=None) -> None:
             _baselines(args.action, args.paths)
         else:
             from rovermarl.analysis.claims import selectors
-            text, _ = selectors(args.results, args.against)
+            text, _ = selectors(args.results, args.against, args.x)
             print(text, end="")
     except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config that cannot be rebuilt
         print(f"{PROG}: error: {e}", file=sys.stderr)

@@ -30,15 +30,35 @@ ORDER = ("k=1", "k=2", "k=3", "k=4", "homogeneous", "adaptive", "ucb1", "thompso
 class Claims:
     """Looks up exported jobs by (setup, label) and formats the statistics of each claim."""
 
-    def __init__(self, results: list[Result]):
+    def __init__(self, results: list[Result], x: str = "generation"):
+        """``x``: measure budgets and times in generations (``generation``) or in team evaluations (``evals``: the
+        initial team's included; methods that spend more than one per generation then line up)."""
+        if x not in ("generation", "evals"):
+            raise ValueError(f"x must be 'generation' or 'evals', got {x!r}")
+        self.x, self.unit = x, "generations" if x == "generation" else "team evaluations"
         self.jobs = {(r.setup, r.label): r for r in results}
-        self.budget = max(r.curves.generations for r in results)
+        self.budget = max(int(self.evals(r, r.curves.generations)) for r in results)
         self.budgets = sorted({max(self.budget // 100, 1), max(self.budget // 10, 1), self.budget})
         self.data: dict = {"budget": self.budget, "budgets": self.budgets}
         self.lines: list[str] = []
 
     def get(self, setup: str, label: str) -> Result | None:
         return self.jobs.get((setup, label))
+
+    def evals(self, r: Result, generations):
+        """Generations of ``r`` on this report's axis: themselves, or the team evaluations spent by then."""
+        g = np.asarray(generations, dtype=np.float64)
+        return g if self.x == "generation" else 1 + float(r.summary.get("evals_per_generation", 1)) * g
+
+    def generation_at(self, r: Result, budgets) -> np.ndarray:
+        """The last generation of ``r`` within each budget on this report's axis."""
+        b = np.asarray(budgets, dtype=np.float64)
+        g = b if self.x == "generation" else (b - 1) / float(r.summary.get("evals_per_generation", 1))
+        return np.clip(np.floor(g + 1e-9), 0, r.curves.generations).astype(np.int64)
+
+    def first(self, r: Result, level: float) -> np.ndarray:
+        """When each run of ``r`` first reached ``level``, on this report's axis (``inf``: never)."""
+        return self.evals(r, r.curves.first(level))
 
     def methods(self, setup: str) -> list[Result]:
         found = [r for (s, _), r in self.jobs.items() if s == setup]
@@ -64,17 +84,17 @@ class Claims:
         head = [f"median score @{b:,}" for b in self.budgets] + (["median held-out score"] if heldout else [])
         head += [f"runs reaching {opt:g}"]
         head += [f"runs reaching {thr:g}"] if thr != opt else []
-        head += [f"median generations to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
+        head += [f"median {self.unit} to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
         base = self.get(setup, against) if against else None
-        head += [f"final score vs {against}", f"generations to {thr:g} vs {against}"] if base else []
+        head += [f"final score vs {against}", f"{self.unit} to {thr:g} vs {against}"] if base else []
         self.lines += [f"| {setup}: method | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
         rows = {}
         for r in self.methods(setup):
-            at = r.curves.at(self.budgets)
+            at = r.curves.at(self.generation_at(r, self.budgets))
             med = [stats.median_ci(at[:, i]) for i in range(len(self.budgets))]
             n = len(r.curves.seeds)
             reach_opt = stats.wilson(int(np.isfinite(r.curves.first(opt)).sum()), n)
-            times = r.curves.first(thr)
+            times = self.first(r, thr)
             reach_thr = stats.wilson(int(np.isfinite(times).sum()), n)
             t = stats.median_ci(times)
             held = stats.median_ci(list(r.summary["heldout_score"].values())) if heldout else None
@@ -109,7 +129,7 @@ class Claims:
     def values(self, r: Result, what: str) -> np.ndarray:
         if what == "final":
             return r.curves.at([r.curves.generations])[:, 0]
-        return r.curves.first(float(what.split(":")[1]))
+        return self.first(r, float(what.split(":")[1]))
 
     def note(self, claim: str, key: str, text: str, value) -> None:
         self.lines.append(f"- {text}")
@@ -260,13 +280,15 @@ def _what(what: str) -> str:
     return "final score" if what == "final" else f"generations to {what.split(':')[1]}"
 
 
-def selectors(path: Path, against: str = "adaptive") -> tuple[str, dict]:
-    """The k-selector comparison of the results dir ``path``: per setup, every method's table row, with
-    Mann-Whitney U against ``against`` (the paper's EXP3); writes ``selectors.md`` and ``selectors.json``."""
-    c = Claims(load(path))
-    c.lines += [f"Budget: {c.budget:,} generations per run; scores at " + ", ".join(f"{b:,}" for b in c.budgets) +
-                f" generations. 95% CIs in brackets; p: two-sided Mann-Whitney U against `{against}` (for "
-                "generations, P(a>b) below 0.5 means faster; never-reached counts as slowest).", ""]
+def selectors(path: Path, against: str = "adaptive", x: str = "generation") -> tuple[str, dict]:
+    """The method comparison of the results dir ``path`` (the k-selectors, or any methods): per setup, every
+    method's table row, with Mann-Whitney U against ``against`` (the paper's EXP3); writes ``selectors.md`` and
+    ``selectors.json``. ``x="evals"`` measures budgets and times in team evaluations (see :class:`Claims`)."""
+    c = Claims(load(path), x)
+    u = c.unit
+    c.lines += [f"Budget: {c.budget:,} {u} per run; scores at " + ", ".join(f"{b:,}" for b in c.budgets) +
+                f" {u}. 95% CIs in brackets; p: two-sided Mann-Whitney U against `{against}` (for "
+                f"{u}, P(a>b) below 0.5 means faster; never-reached counts as slowest).", ""]
     for setup in c.setups():
         c.lines += [f"### {setup}", ""]
         c.table(setup, against)
