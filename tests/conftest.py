@@ -14,6 +14,19 @@ ROOT = Path(__file__).resolve().parents[1]
 make_cfg = compose_config
 
 
+def start_until_checkpoint(argv: list[str], sweep: Path, timeout: float = 240) -> subprocess.Popen:
+    """Start ``argv`` (a train command into ``sweep``) in a session of its own, and return it once a run of the sweep
+    has written its first checkpoint; fails if it ended before."""
+    import time
+    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.monotonic() + timeout
+    while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before its first checkpoint"
+    return proc
+
+
 def run_cli(*args: str, module: str = "rovermarl.train", cwd: Path | None = None, env: dict | None = None,
             timeout: int = 300) -> subprocess.CompletedProcess:
     full_env = {**os.environ, **(env or {})}

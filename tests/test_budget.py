@@ -51,3 +51,19 @@ def test_the_estimate_scales_with_the_work():
                   ((), ("generations=40000", "policy.hidden=32")))
     assert big.job_s > 3 * small.job_s and big.memory["records"] == pytest.approx(2 * small.memory["records"], 1e-3)
     assert budget.duration(90) == "1.5 min" and budget.duration(7200) == "2 h" and budget.size(3e9) == "3 GB"
+
+
+def test_the_estimate_counts_each_algorithms_evaluations_per_generation():
+    from rovermarl.runner.chunk import parts, to_plain
+
+    def job_s(*overrides):
+        plain = to_plain(make_cfg(*overrides, "generations=1000", "parallel=serial"))
+        built = parts(plain)
+        per = built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"])
+        return budget.estimate(plain, 32, per).job_s, per
+
+    base, one = job_s()
+    ccea, eleven = job_s("algorithm=ccea")
+    fresh, two = job_s("evaluation.fresh_ic=true")
+    assert (one, eleven, two) == (1, 11, 2)
+    assert ccea / base == pytest.approx((1000 * 11 + 1) / 1001) and fresh / base == pytest.approx(2001 / 1001)

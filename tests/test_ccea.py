@@ -5,7 +5,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import numpy as np
 import pytest
@@ -14,7 +13,7 @@ from rovermarl.algorithms import credit
 from rovermarl.env import make_world
 from rovermarl.runner import Run
 from rovermarl.runner.chunk import advance, to_plain
-from tests.conftest import ROOT, assert_same_curves, make_cfg, run_cli, sweep_curves
+from tests.conftest import ROOT, assert_same_curves, make_cfg, run_cli, start_until_checkpoint, sweep_curves
 
 FAR = (0.0, 0.0)                                  # the centre: 13 from every POI, within obs_radius of none
 DUO0, DUO5, SOLO1 = (13.0, 0.0), (-13.0, 0.0), (13 * np.cos(0.2 * np.pi), 13 * np.sin(0.2 * np.pi))
@@ -108,12 +107,7 @@ def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
             "seeds=2", "checkpoint.every=10", "parallel.chunk=10")
     sweep = tmp_path / "sweep"
     argv = [sys.executable, "-m", "rovermarl.train", *args, "ray.num_cpus=2", f"hydra.sweep.dir={sweep}"]
-    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    deadline = time.monotonic() + 240
-    while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert proc.poll() is None, "the sweep ended before the interruption"
+    proc = start_until_checkpoint(argv, sweep)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err[-2000:]

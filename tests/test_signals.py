@@ -5,12 +5,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import psutil
 import pytest
 
-from tests.conftest import ROOT, assert_same_curves, run_cli, sweep_curves
+from tests.conftest import ROOT, assert_same_curves, run_cli, start_until_checkpoint, sweep_curves
 
 ARGS = ("-m", "k=1,2", "setup=duo", "generations=1500", "seeds=2", "parallel.chunk=100", "checkpoint.every=100",
         "record=off", "~hydra.callbacks.plot")
@@ -27,12 +26,7 @@ def _descendants(pid: int) -> list[psutil.Process]:
 def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path, sig, code, what):
     sweep = tmp_path / "sweep"
     argv = [sys.executable, "-m", "rovermarl.train", *ARGS, "ray.num_cpus=2", f"hydra.sweep.dir={sweep}"]
-    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
-    deadline = time.monotonic() + 240
-    while not list(sweep.glob("*/runs/*/checkpoint.bin")) and proc.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert proc.poll() is None, "the sweep ended before the signal"
+    proc = start_until_checkpoint(argv, sweep)
     started = _descendants(proc.pid)                                   # this driver's Ray processes
     assert any("raylet" in p.name() for p in started)
     if sig == signal.SIGINT:

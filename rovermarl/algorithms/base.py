@@ -140,6 +140,11 @@ class Algorithm:
         """The score of :meth:`team`."""
         return float(state["score"])
 
+    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
+        """Team evaluations one generation costs (``fresh_ic``: under ``evaluation.fresh_ic``): what the runner's
+        time estimate and the comparisons at equal evaluations assume. Override it when it is not 1."""
+        return 1.0
+
     # ---- to implement ----------------------------------------------------------------------------------------
     def _init(self, seeds, evaluate):
         raise NotImplementedError

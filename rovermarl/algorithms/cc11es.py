@@ -53,6 +53,9 @@ class CC11ES(Algorithm):
             self.series += (Series("probs", "float64", (len(arms),), np.nan, "the selector's probability of each k "
                                    "before the generation", tuple(f"k{a}" for a in arms), "bandit"),)
 
+    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
+        return 2.0 if fresh_ic else 1.0                                   # fresh ICs: the parents scored again
+
     def _init(self, seeds, evaluate):
         s_init, s_mut, s_sel = seeds.spawn(3)
         parents = self.composition.init(self.world.n_params, self.low, self.high, np.random.default_rng(s_init))

@@ -49,6 +49,9 @@ class CCEA(Algorithm):
                    tuple(f"rover{i}" for i in range(world.n_rovers))),
         )
 
+    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
+        return self.pop_size + 1.0
+
     def _init(self, seeds, evaluate):
         s_init, s_run = seeds.spawn(2)
         size = (self.world.n_rovers, self.pop_size, self.world.n_params)

@@ -49,8 +49,10 @@ def available_memory() -> float:
     return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
-def estimate(plain: dict, series_bytes: int = 32) -> Estimate:
-    """The estimate of a plain composed config; ``series_bytes`` is the algorithm's bytes per generation."""
+def estimate(plain: dict, series_bytes: int = 32, per_generation: float | None = None) -> Estimate:
+    """The estimate of a plain composed config; ``series_bytes`` is the algorithm's bytes per generation and
+    ``per_generation`` its team evaluations per generation (:meth:`Algorithm.evaluations_per_generation
+    <rovermarl.algorithms.Algorithm.evaluations_per_generation>`; None: 1, or 2 under ``evaluation.fresh_ic``)."""
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
@@ -67,17 +69,18 @@ def estimate(plain: dict, series_bytes: int = 32) -> Estimate:
     evaluation_s = e * t * n * ns * 1e-9
     par = plain.get("parallel") or {}
     cpus = 1 if par.get("backend") == "serial" else int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count())
-    job_s = evaluation_s * (g * (2 if fresh else 1) + 1) * seeds / max(1, min(cpus, seeds))
+    per_generation = (2 if fresh else 1) if per_generation is None else per_generation
+    job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
 
 
-def check(plain: dict, series_bytes: int = 32) -> Estimate:
+def check(plain: dict, series_bytes: int = 32, per_generation: float | None = None) -> Estimate:
     """Raise :class:`~rovermarl.errors.ConfigError` for a job this machine cannot do; else its estimate."""
     sigma = (plain.get("mutation") or {}).get("sigma")
     if isinstance(sigma, (int, float)) and not isinstance(sigma, bool) and abs(sigma) > SIGMA_LIMIT:
         raise errors.ConfigError("mutation.sigma", sigma, f"must be at most {SIGMA_LIMIT:g}: larger Gaussian "
                                  "mutations make genomes non-finite")
-    est = estimate(plain, series_bytes)
+    est = estimate(plain, series_bytes, per_generation)
     if est.evaluation_s > EVALUATION_LIMIT_S:
         key = _largest(plain, ("env.steps", "env.episodes", "policy.hidden", "env.n_rovers"))
         raise errors.ConfigError(key, _get(plain, key), f"one team evaluation would take about "

@@ -52,7 +52,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     job, job_dir = to_plain(cfg), Path(job_dir)
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
-    est = budget.estimate(job, series_bytes(series))
+    est = budget.estimate(job, series_bytes(series),
+                          built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
     if est.job_s > LONG_JOB_S:
         log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
                  budget.size(est.total_memory))

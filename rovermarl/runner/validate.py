@@ -76,7 +76,8 @@ def validate(cfg: DictConfig) -> None:
                 else "missing; the config refers to it")
         raise errors.ConfigError(key, None, what) from None
     built = parts(plain)                               # builds world and algorithm once; the job reuses them
-    budget.check(plain, series_bytes(built.algorithm.series))
+    budget.check(plain, series_bytes(built.algorithm.series),
+                 built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
 
 
 def series_bytes(series) -> int:
