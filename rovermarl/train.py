@@ -15,6 +15,7 @@ import os
 import signal
 import sys
 import tempfile
+import threading
 from pathlib import Path
 
 from hydra.core.hydra_config import HydraConfig
@@ -148,25 +149,34 @@ def main(argv: list[str] | None = None) -> None:
 
 def _run(args, parser, stop_ray: bool = True) -> None:
     """Hydra's main, with SIGINT and SIGTERM turned into one line and Ray shut down however it ends."""
-    previous = signal.signal(signal.SIGTERM, _terminate)             # after Ray's init, which sets its own
+    previous = {sig: signal.signal(sig, _signalled) for sig in (signal.SIGINT, signal.SIGTERM)}   # after Ray's init
+    hook, sys.unraisablehook = sys.unraisablehook, _unraisable
+    _SIGNALS.clear()
     stop = None
     try:
         hydra_compat.run(args, parser, task, str(CONF_DIR))
-    except KeyboardInterrupt as e:
+    except KeyboardInterrupt:
         if os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
-        what = "terminated" if isinstance(e, Terminated) else "interrupted"
-        stop = Stop(f"{PROG}: {what}; relaunch the same command to resume", 143 if isinstance(e, Terminated) else 130)
+        if not _SIGNALS:                                             # a KeyboardInterrupt of the user's code
+            _SIGNALS.append(signal.SIGINT)
     except Stop as e:
         stop = e
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+        sys.unraisablehook = hook
         if stop_ray:
-            with _quiet_stderr() if stop else contextlib.nullcontext():   # Ray's shutdown after a fault is noise
-                _stop_ray()
+            with _quiet_stderr() if stop or _SIGNALS else contextlib.nullcontext():   # Ray's shutdown after a
+                _stop_ray()                                                          # fault is noise
+    if _SIGNALS:                  # also when the interrupt was swallowed (raised in a finalizer) and the work went on
+        term = signal.SIGTERM in _SIGNALS
+        stop = Stop(f"{PROG}: {'terminated' if term else 'interrupted'}; relaunch the same command to resume",
+                    143 if term else 130)
     if stop:
         print(stop.line, file=sys.stderr)
         sys.exit(stop.code)
+
 
 def _sweep_lock(args):
     """The launch holds its output dir's lock (the sweep dir of a multirun, each job then its own job dir's too, in
@@ -180,9 +190,28 @@ class Terminated(KeyboardInterrupt):
     """SIGTERM, raised where the driver is, so that it unwinds like Ctrl-C (files are written atomically)."""
 
 
-def _terminate(signum, frame):
-    signal.signal(signal.SIGTERM, signal.SIG_IGN)                    # once: the unwinding may take a moment
-    raise Terminated()
+_SIGNALS: list[int] = []                                             # SIGINT / SIGTERM received by this launch
+_REARM: list[bool] = []                                              # the last interrupt was dropped: raise again
+
+
+def _signalled(signum, frame):
+    """Unwind on SIGINT or SIGTERM, once (the unwinding is not interrupted again); the launch then ends with exit
+    130 / 143, whatever caught the exception."""
+    if not _SIGNALS or _REARM:
+        _REARM.clear()
+        _SIGNALS.append(signum)
+        raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    _SIGNALS.append(signum)
+
+
+def _unraisable(unraisable) -> None:
+    """Python drops an exception raised in a finalizer (``__del__``, a weakref callback): when that was our
+    interrupt, deliver it again to the main thread, from another thread once this hook has returned."""
+    if _SIGNALS and unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+        _REARM.append(True)
+        threading.Timer(0.01, signal.pthread_kill, (threading.main_thread().ident, _SIGNALS[0])).start()
+        return
+    sys.__unraisablehook__(unraisable)
 
 
 @contextlib.contextmanager

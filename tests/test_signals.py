@@ -5,13 +5,14 @@ import os
 import signal
 import subprocess
 import sys
+import time
 
 import psutil
 import pytest
 
 from tests.conftest import ROOT, assert_same_curves, run_cli, start_until_checkpoint, sweep_curves
 
-ARGS = ("-m", "k=1,2", "setup=duo", "generations=1500", "seeds=2", "parallel.chunk=100", "checkpoint.every=100",
+ARGS = ("-m", "k=1,2", "setup=duo", "generations=4000", "seeds=2", "parallel.chunk=100", "checkpoint.every=100",
         "record=off", "~hydra.callbacks.plot")
 
 
@@ -48,3 +49,28 @@ def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path,
     got, want = sweep_curves(sweep), sweep_curves(tmp_path / "ref")
     assert len(want) == 4
     assert_same_curves(got, want)
+
+
+def test_an_interrupt_dropped_in_a_finalizer_is_delivered_again():
+    """Python drops a KeyboardInterrupt raised while a finalizer runs (Ray's object refs have them); the launch's
+    handlers deliver it again to the main code instead of letting the work go on."""
+    from rovermarl import train
+
+    class Finalized:
+        def __del__(self):
+            os.kill(os.getpid(), signal.SIGINT)               # the handler runs inside this finalizer
+            for _ in range(1000):
+                pass
+
+    previous = signal.signal(signal.SIGINT, train._signalled)
+    hook, sys.unraisablehook = sys.unraisablehook, train._unraisable
+    train._SIGNALS.clear()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            Finalized()                                       # deleted at once: the finalizer swallows the first raise
+            time.sleep(5)                                     # the main code is interrupted here
+        assert train._SIGNALS == [signal.SIGINT, signal.SIGINT]   # the signal, then its re-delivery
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        sys.unraisablehook = hook
+        train._SIGNALS.clear()
