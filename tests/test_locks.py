@@ -11,7 +11,7 @@ import pytest
 
 from rovermarl.record import lock
 from rovermarl.runner.job import run_job
-from tests.conftest import ROOT, make_cfg
+from tests.conftest import ROOT, assert_same_curves, make_cfg, run_cli, sweep_curves
 
 ARGS = ("-m", "k=1,2", "setup=duo", "generations=800", "seeds=2", "parallel=serial", "parallel.chunk=100",
         "checkpoint.every=100", "~hydra.callbacks.plot")
@@ -42,6 +42,9 @@ def test_two_launches_on_one_sweep_dir_one_refuses_the_sweep_completes(tmp_path)
     for rrd in sorted(sweep.glob("*/runs/*/run.rrd")):
         verify = subprocess.run([rerun, "rrd", "verify", str(rrd)], capture_output=True, text=True, timeout=120)
         assert verify.returncode == 0, verify.stderr[-2000:]
+    ref = run_cli(*ARGS, f"hydra.sweep.dir={tmp_path / 'ref'}")          # the same sweep, alone
+    assert ref.returncode == 0, ref.stderr[-2000:]
+    assert_same_curves(sweep_curves(sweep), sweep_curves(tmp_path / "ref"))
 
 
 def test_a_held_job_dir_refuses_another_writer_and_is_free_after(tmp_path):
