@@ -4,7 +4,9 @@ long job states its estimated time."""
 import subprocess
 import sys
 import time
+from functools import partial
 
+import numpy as np
 import pytest
 
 from rovermarl.runner import budget
@@ -14,7 +16,7 @@ NOWHERE = "ray.address=10.255.255.1:6379"            # never probed: the refusal
 
 
 @pytest.mark.parametrize("override,message", [
-    ("generations=1000000000", "the job needs about"),
+    ("generations=1000000000", "one run needs about"),
     ("policy.hidden=100000000", "the job needs about"),
     ("env.steps=1000000000", "one team evaluation would take about"),
     ("env.n_rovers=100000", "one team evaluation would take about"),
@@ -67,3 +69,27 @@ def test_the_estimate_counts_each_algorithms_evaluations_per_generation():
     fresh, two = job_s("evaluation.fresh_ic=true")
     assert (one, eleven, two) == (1, 11, 2)
     assert ccea / base == pytest.approx((1000 * 11 + 1) / 1001) and fresh / base == pytest.approx(2001 / 1001)
+
+
+def test_runs_that_do_not_fit_in_memory_at_once_stream_in_batches(tmp_path, monkeypatch, caplog):
+    from rovermarl.runner.chunk import parts, to_plain
+    from rovermarl.runner.job import run_job
+    from rovermarl.runner.validate import series_bytes
+    from tests.conftest import sweep_curves
+
+    cfg = make_cfg("generations=300", "seeds=5", "parallel=serial", "record=off")
+    whole = run_job(cfg, tmp_path / "all" / "job")
+    per_series = series_bytes(parts(to_plain(cfg)).algorithm.series)
+    per_run = budget.run_bytes(to_plain(cfg), per_series)
+    fits_two = partial(budget.batch_size, memory=4 * 2.5 * per_run)              # two runs fit at once
+    assert fits_two(to_plain(cfg), per_series) == 2
+    monkeypatch.setattr(budget, "batch_size", fits_two)
+    with caplog.at_level("INFO", logger="rovermarl"):
+        streamed = run_job(cfg, tmp_path / "streamed" / "job")
+    assert "5 runs stream in batches of 2" in caplog.text
+    assert streamed["final_score"] == whole["final_score"] and streamed["team_evals"] == whole["team_evals"]
+    assert streamed["first_generation_reaching"] == whole["first_generation_reaching"]
+    got, want = sweep_curves(tmp_path / "streamed"), sweep_curves(tmp_path / "all")
+    assert len(want) == 5 and all(np.array_equal(got[k]["score"], want[k]["score"]) for k in want)
+    huge = to_plain(make_cfg("seeds=100000", "parallel=serial"))                 # 100,000 runs: refused before
+    assert budget.check(huge).memory["records"] <= 0.25 * budget.available_memory() + per_run

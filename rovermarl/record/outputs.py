@@ -129,11 +129,17 @@ def first_reaching(score: np.ndarray, level: float) -> int | None:
     return int(hits[0]) if hits.size else None
 
 
-def summarize(choices: dict, seeds: list[int], scores: dict[int, np.ndarray], levels, wall_time_s: float,
+def outcome(score: np.ndarray, levels) -> dict:
+    """What the summary keeps of one run's score curve (G+1,): its final score and first generation reaching each
+    level (the driver then drops the curve)."""
+    return {"final": float(score[-1]), "first": {str(lv): first_reaching(score, lv) for lv in levels}}
+
+
+def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels, wall_time_s: float,
               team_evals: int, heldout: dict[int, float]) -> dict:
     """The job's summary: config choices, per-seed final and held-out scores, first generations reaching each
-    level."""
-    final = {str(s): float(scores[s][-1]) for s in seeds}
+    level (``outcomes``: :func:`outcome` of each seed)."""
+    final = {str(s): outcomes[s]["final"] for s in seeds}
     held = {str(s): float(heldout[s]) for s in seeds}
     return {
         "choices": choices,
@@ -143,7 +149,7 @@ def summarize(choices: dict, seeds: list[int], scores: dict[int, np.ndarray], le
         "heldout_score": held,
         "median_heldout_score": float(np.median(list(held.values()))),
         "first_generation_reaching": {
-            str(lv): {str(s): first_reaching(scores[s], lv) for s in seeds} for lv in levels},
+            str(lv): {str(s): outcomes[s]["first"][str(lv)] for s in seeds} for lv in levels},
         "wall_time_s": wall_time_s,
         "team_evals": team_evals,
         "team_evals_per_s": team_evals / wall_time_s if wall_time_s > 0 else None,

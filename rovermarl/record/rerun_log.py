@@ -189,6 +189,18 @@ def _columns(rr, generations) -> list:
     return [rr.TimeColumn("generation", sequence=np.asarray(generations, dtype=np.int64))]
 
 
+SLICE = 20_000                                      # rows per send: the SDK's buffers stay small on long runs
+
+
+def _send_scalars(rec, rr, entity: str, generations: np.ndarray, values: np.ndarray) -> None:
+    """``values`` (M,) at ``generations`` (M,) on the generation timeline, in slices flushed to the file one by one
+    (one ``send_columns`` of a million rows holds several hundred MB in the SDK)."""
+    for i in range(0, len(generations), SLICE):
+        rec.send_columns(entity, indexes=_columns(rr, generations[i:i + SLICE]),
+                         columns=rr.Scalars.columns(scalars=np.asarray(values[i:i + SLICE], dtype=np.float64)))
+        rec.flush()
+
+
 def _kept(s, values: np.ndarray) -> np.ndarray:
     """Rows whose value is not the series' not-computed marker (a non-zero ``fill``: -1, nan)."""
     fill = float(s.fill)
@@ -205,7 +217,7 @@ def _metrics(rec, rr, result, series, every) -> None:
     gens = np.unique(np.r_[np.arange(0, last + 1, every), last])
     rec.log("metrics/score", rr.SeriesLines(names="score", colors=palette.rgb(palette.SCORE), widths=2.0,
                                             interpolation_mode="StepAfter"), static=True)
-    rec.send_columns("metrics/score", indexes=_columns(rr, gens), columns=rr.Scalars.columns(scalars=score[gens]))
+    _send_scalars(rec, rr, "metrics/score", gens, score[gens])
     after = gens[gens >= 1]                                              # generation g's entry: index g - 1
     for s in series:
         values = np.asarray(result[s.name])[after - 1]
@@ -225,8 +237,7 @@ def _one_series(rec, rr, s, entity, name, gens, values, colour) -> None:
                                aggregation_policy="Average")         # zoomed out: the mean over each pixel
     rec.log(entity, style, static=True)
     if keep.any():
-        rec.send_columns(entity, indexes=_columns(rr, gens[keep]),
-                         columns=rr.Scalars.columns(scalars=values[keep].astype(np.float64)))
+        _send_scalars(rec, rr, entity, gens[keep], values[keep])
 
 
 def occupancy_vmax(result) -> float:

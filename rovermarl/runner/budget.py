@@ -3,6 +3,7 @@
 :func:`check` refuses, in one line naming the key, a config that cannot fit this machine's memory or whose single
 team evaluation would take longer than :data:`EVALUATION_LIMIT_S`, or whose mutation size makes genomes non-finite;
 :func:`estimate` gives the memory and time a feasible job needs (the job logs the time at INFO when it is long).
+A job with more runs than fit in memory at once streams them in batches (:func:`batch_size`).
 
 The cost model is this project's kernel measured on a 2-core AVX-512 machine (``benchmarks/throughput.py``: about
 320 ns per agent-step at 38 inputs x 16 hidden units, two thirds of it the MLP), scaled by the MLP's size.
@@ -61,7 +62,7 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float | None =
     seeds = int(plain["seeds"])
     fresh = bool((plain.get("evaluation") or {}).get("fresh_ic", False))
     memory = {
-        "records": 1.0 * seeds * (g + 1) * (8 + series_bytes),                 # the driver's curves of every run
+        "records": 1.0 * batch_size(plain, series_bytes) * run_bytes(plain, series_bytes),   # the driver's runs
         "team": 3.0 * n * genome * 8,                                          # parents, children, the world's copy
         "episodes": 1.0 * e * n * (d + h + 8) * 8,                             # observations, hidden units, state
     }
@@ -72,6 +73,18 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float | None =
     per_generation = (2 if fresh else 1) if per_generation is None else per_generation
     job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
+
+
+def run_bytes(plain: dict, series_bytes: int = 32) -> float:
+    """Bytes the driver holds for one run: its score and declared series, every generation."""
+    return (int(plain["generations"]) + 1) * (8.0 + series_bytes)
+
+
+def batch_size(plain: dict, series_bytes: int = 32, memory: float | None = None) -> int:
+    """How many runs of a job the driver holds at once: all of them when they fit in a quarter of the available
+    ``memory``, else as many as do (at least one); a job streams its runs in batches of this size."""
+    memory = available_memory() if memory is None else memory
+    return int(max(1, min(int(plain["seeds"]), memory / 4 // run_bytes(plain, series_bytes))))
 
 
 def check(plain: dict, series_bytes: int = 32, per_generation: float | None = None) -> Estimate:
@@ -86,9 +99,13 @@ def check(plain: dict, series_bytes: int = 32, per_generation: float | None = No
         raise errors.ConfigError(key, _get(plain, key), f"one team evaluation would take about "
                                  f"{duration(est.evaluation_s)} here (limit {duration(EVALUATION_LIMIT_S)})")
     avail = available_memory()
+    if run_bytes(plain, series_bytes) > avail / 4:                 # one run's record: never split
+        raise errors.ConfigError("generations", _get(plain, "generations"), f"one run needs about "
+                                 f"{size(run_bytes(plain, series_bytes))} of memory for its record, more than a "
+                                 f"quarter of the {size(avail)} this machine has available")
     if est.total_memory > avail:
         part = max(est.memory, key=est.memory.get)
-        keys = {"records": ("generations", "seeds"), "team": ("policy.hidden", "env.n_rovers"),
+        keys = {"records": ("generations",), "team": ("policy.hidden", "env.n_rovers"),
                 "episodes": ("env.episodes", "env.n_rovers", "policy.hidden")}[part]
         key = _largest(plain, keys)
         raise errors.ConfigError(key, _get(plain, key), f"the job needs about {size(est.total_memory)} of memory "

@@ -23,6 +23,7 @@ from rovermarl.record.outputs import (
     atomic_open,
     finished,
     load_score,
+    outcome,
     run_dir,
     save_run,
     summarize,
@@ -58,7 +59,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
                  budget.size(est.total_memory))
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
-    scores, heldout, records, other_code = {}, {}, [], []
+    outcomes, heldout, todo, other_code = {}, {}, [], []
     for seed in seeds:
         out = run_dir(job_dir, seed)
         if cfg.resume:
@@ -72,29 +73,18 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             other_code.append(meta.get("provenance"))
             meta = None if cfg.resume == "strict" else meta
         if meta is not None:
-            scores[seed] = load_score(out)
+            outcomes[seed] = outcome(load_score(out), cfg.levels)
             heldout[seed] = meta["heldout_score"] if "heldout_score" in meta else _backfill(out, meta, built, seed)
             continue
-        problems: list[str] = []
-        rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
-        if rec is not None and rec.seed != seed:
-            problems.append(f"{out / 'checkpoint.bin'} holds seed {rec.seed}, not {seed}; ignoring it")
-            rec = None
-        for problem in problems:
-            log.warning("%s: %s", name, problem)
-        if rec is not None:
-            log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
-        elif problems:
-            log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
-        records.append(rec or RunRecord(seed, cfg.generations, series))
+        todo.append(seed)
     if other_code:
         log.warning("%s: %d finished run(s) were made by other code (%s; this is %s): %s", name, len(other_code),
                     describe(other_code[0]), describe(provenance()),
                     "recomputed (resume=strict)" if cfg.resume == "strict" else "kept; resume=strict recomputes them")
-    if scores:
-        log.info("%s: %d of %d runs already finished, skipped", name, len(scores), len(seeds))
+    if outcomes:
+        log.info("%s: %d of %d runs already finished, skipped", name, len(outcomes), len(seeds))
     summary_path = job_dir / "summary.json"
-    if not records and summary_path.exists():
+    if not todo and summary_path.exists():
         summary = json.loads(summary_path.read_text())
         if ("heldout_score" in summary and summary.get("seeds") == seeds and
                 set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in cfg.levels}):
@@ -106,32 +96,56 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             f.write(OmegaConf.to_yaml(job))
     rrd = partial(_rrd, world=built.world, record=cfg.record, series=series) if cfg.record.rerun else None
     every = max(cfg.checkpoint.every, 1)
-    t0 = time.perf_counter()
-    start = sum(rec.generation for rec in records)
-    with tqdm(total=sum(rec.generations for rec in records), initial=start, desc=name, unit="gen", disable=None,
-              leave=False, dynamic_ncols=True) as bar:
+    batch = budget.batch_size(job, series_bytes(series))
+    if batch < len(todo):
+        log.info("%s: %d runs stream in batches of %d (what fits in memory)", name, len(todo), batch)
+    t0, evaluations = time.perf_counter(), 0
+    with tqdm(total=len(todo) * cfg.generations, desc=name, unit="gen", disable=None, leave=False,
+              dynamic_ncols=True) as bar:
         def on_chunk(rec: RunRecord, advanced: int) -> None:
             bar.update(advanced)
             out = run_dir(job_dir, rec.seed)
             if rec.done:
                 save_run(job_dir, rec.result(), series, key, rrd)
                 checkpoint.remove(out / "checkpoint.bin")
-                scores[rec.seed], heldout[rec.seed] = rec.score, float(rec.extra["heldout_score"])
-                bar.set_postfix_str(f"runs {len(scores)}/{len(seeds)}")
+                outcomes[rec.seed] = outcome(rec.score, cfg.levels)
+                heldout[rec.seed] = float(rec.extra["heldout_score"])
+                bar.set_postfix_str(f"runs {len(outcomes)}/{len(seeds)}")
             elif rec.generation // every > (rec.generation - advanced) // every:
                 rec.save(out / "checkpoint.bin", key)
 
-        run_records(cfg, job, records, on_chunk, advance)
+        for i in range(0, len(todo), batch):                            # the records of one batch at a time
+            records = [_record(cfg, job_dir, seed, key, series, name) for seed in todo[i:i + batch]]
+            bar.update(sum(rec.generation for rec in records))
+            run_records(cfg, job, records, on_chunk, advance)
+            evaluations += sum(rec.evaluations for rec in records)
     wall = time.perf_counter() - t0
-    summary = summarize(choices or {}, seeds, scores, list(cfg.levels), wall,
-                        team_evals=sum(rec.evaluations for rec in records), heldout=heldout)
+    summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
+                        heldout=heldout)
     write_json(summary_path, summary)
     with open(job_dir / "invocations.jsonl", "a") as f:                  # compute of every launch, for totals
         f.write(json.dumps({"finished_at": time.time(), "wall_time_s": wall, "team_evals": summary["team_evals"],
-                            "runs_advanced": len(records)}) + "\n")
+                            "runs_advanced": len(todo)}) + "\n")
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _record(cfg, job_dir: Path, seed: int, key: str, series, name: str) -> RunRecord:
+    """Run ``seed``'s record: from its checkpoint when it has a usable one, else fresh."""
+    out = run_dir(job_dir, seed)
+    problems: list[str] = []
+    rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
+    if rec is not None and rec.seed != seed:
+        problems.append(f"{out / 'checkpoint.bin'} holds seed {rec.seed}, not {seed}; ignoring it")
+        rec = None
+    for problem in problems:
+        log.warning("%s: %s", name, problem)
+    if rec is not None:
+        log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
+    elif problems:
+        log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
+    return rec or RunRecord(seed, cfg.generations, series)
 
 
 def _no_curve(out: Path) -> str | None:
