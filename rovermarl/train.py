@@ -66,6 +66,7 @@ class Stop(SystemExit):
         super().__init__(code)
         self.line = line
 
+
 def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser, list[DictConfig]]:
     """Parse, compose and validate every job of ``argv`` (already quoted); raises ConfigError.
 
@@ -152,6 +153,7 @@ def _run(args, parser, stop_ray: bool = True) -> None:
     previous = {sig: signal.signal(sig, _signalled) for sig in (signal.SIGINT, signal.SIGTERM)}   # after Ray's init
     hook, sys.unraisablehook = sys.unraisablehook, _unraisable
     _SIGNALS.clear()
+    _REARM.clear()
     stop = None
     try:
         hydra_compat.run(args, parser, task, str(CONF_DIR))
@@ -209,9 +211,15 @@ def _unraisable(unraisable) -> None:
     interrupt, deliver it again to the main thread, from another thread once this hook has returned."""
     if _SIGNALS and unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
         _REARM.append(True)
-        threading.Timer(0.01, signal.pthread_kill, (threading.main_thread().ident, _SIGNALS[0])).start()
+        threading.Timer(0.01, _redeliver, (_SIGNALS[0],)).start()
         return
     sys.__unraisablehook__(unraisable)
+
+
+def _redeliver(signum: int) -> None:
+    """The dropped interrupt again, to the main thread, while the launch still handles it."""
+    if _REARM and signal.getsignal(signum) is _signalled:
+        signal.pthread_kill(threading.main_thread().ident, signum)
 
 
 @contextlib.contextmanager
