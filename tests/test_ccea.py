@@ -123,3 +123,37 @@ def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
     assert sorted(p.name for p in (sweep / "figures").glob("curves_*.png")) == ["curves_duo.png"]
     for run in sweep.glob("*/runs/seed_*"):
         assert (run / "run.rrd").stat().st_size > 0 and (run / "behaviour.npz").is_file()
+
+
+def _dpp_reference(world, xy):
+    """D++ one rover and one episode at a time, straight from the published algorithm (AADI's reading)."""
+    n = xy.shape[-2]
+    out = np.zeros((n, xy.shape[0]))
+    for e in range(xy.shape[0]):
+        ep = xy[e]
+        g = world.episode_return(ep)
+        for i in range(n):
+            d = g - world.episode_return(np.delete(ep, i, axis=-2))
+            gain = {k: (world.episode_return(np.concatenate([ep] + [ep[:, i:i + 1]] * k, axis=-2)) - g) / k
+                    for k in range(1, n)}
+            best = gain[n - 1]
+            if best <= d:
+                out[i, e] = d
+                continue
+            out[i, e] = next((gain[k] for k in range(1, n - 1) if gain[k] > best), best)
+    return out
+
+
+@pytest.mark.parametrize("setup,reward", [("duo", "final"), ("trio", "final"), ("duo", "any_step"),
+                                          ("trio", "best_step"), ("duo", "mean_step")])
+def test_credits_equal_a_one_episode_at_a_time_reference(setup, reward):
+    w = make_world(setup, reward=reward)
+    rng = np.random.default_rng(1)
+    pois = w.poi_xy[rng.integers(0, 3, (64, w.steps + 1, w.n_rovers))]     # rovers crowd POIs 0-2 (a duo/trio POI)
+    xy = pois + rng.normal(0, 1.2, pois.shape)
+    want_d = np.array([[w.episode_return(ep) - w.episode_return(np.delete(ep, i, axis=-2)) for ep in xy]
+                       for i in range(w.n_rovers)])
+    assert np.array_equal(credit.difference(w, xy), want_d)
+    assert np.array_equal(credit.dpp(w, xy), _dpp_reference(w, xy))
+    if reward == "final":                                                     # the cases D++ is for occur
+        assert (credit.dpp(w, xy) != credit.difference(w, xy)).any()

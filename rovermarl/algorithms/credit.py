@@ -22,6 +22,17 @@ import numpy as np
 CREDITS = ("global", "difference", "dpp")
 
 
+def _scored(world, xy: np.ndarray) -> np.ndarray:
+    """The part of trajectories xy (..., T+1, N, 2) the world's reading scores: the last step under ``final``
+    (counterfactual teams are then built from final positions only), else every step."""
+    return xy[..., -1:, :, :] if world.reward == "final" else xy
+
+
+def _returns(world, xy: np.ndarray) -> np.ndarray:
+    """Returns of (counterfactual) teams from :func:`_scored` trajectories (..., S, M, 2) -> (...,)."""
+    return world.team_return(xy[..., -1, :, :]) if world.reward == "final" else world.episode_return(xy)
+
+
 def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
     """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
 
@@ -61,7 +72,7 @@ def difference(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray
     [[3.0], [3.0]]
     """
     g = world.episode_return(xy) if g is None else g
-    return g[None, :] - world.episode_return(without(xy))
+    return g[None, :] - _returns(world, without(_scored(world, xy)))
 
 
 def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
@@ -78,7 +89,8 @@ def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
     rovers = xy.shape[-2]
     if rovers < 2:
         return d
-    gain = np.stack([(world.episode_return(with_partners(xy, n)) - g[None, :]) / n for n in range(1, rovers)])
+    xy = _scored(world, xy)
+    gain = np.stack([(_returns(world, with_partners(xy, n)) - g[None, :]) / n for n in range(1, rovers)])
     most = gain[-1]                                                       # (N, E): N - 1 partners
     out = most.copy()
     decided = np.zeros(most.shape, dtype=bool)
