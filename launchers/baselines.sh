@@ -2,8 +2,9 @@
 # The baselines study (docs/BASELINES.md): CC-(1+1)-ES (k=1, k=2, adaptive) against the classic rover-domain CCEA
 # with the global (G), difference (D) and D++ rewards, on solo, duo and trio, at an equal budget of team evaluations
 # per run: EVALS for cc11es (one evaluation per generation), ceil((EVALS - 1) / (pop_size + 1)) generations of ccea
-# (pop_size + 1 per generation). Then the compact results (RESULTS/baselines.json) and the report
-# (RESULTS/baselines.md). Resumable: rerun it after an interruption.
+# (pop_size + 1 per generation). Then the compact results (RESULTS/baselines.json), the report
+# (RESULTS/baselines.md) and the figures (RESULTS/figures, against team evaluations; FIGURES=no skips them).
+# Resumable: rerun it after an interruption.
 # Usage: [EVALS=N (default 400000)] [SEEDS=S] [OUT=DIR] [RESULTS=DIR] [SETUPS="duo solo trio"]
 #        launchers/baselines.sh [HYDRA_OVERRIDE ...]
 # Only the committed study's budget (EVALS=400000 SEEDS=16, all setups) refreshes results/baselines; any other
@@ -25,3 +26,4 @@ for setup in ${SETUPS:-duo solo trio}; do
 done
 "$PYTHON" -m rovermarl.analysis baselines export "$OUT" "$RESULTS"
 "$PYTHON" -m rovermarl.analysis baselines report "$RESULTS"
+figures "$OUT" --out "$RESULTS/figures" --format png --x evals   # score curves against team evaluations

@@ -51,11 +51,13 @@ def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
     assert (study / "results" / "baselines.md").read_text() == text
 
 
-def test_the_figures_put_team_evaluations_on_the_x_axis(study):
-    index = json.loads((study / "sweep" / "figures" / "index.json").read_text())
+@pytest.mark.parametrize("where", ["sweep/figures", "results/figures"])   # the end-of-sweep callback; the launcher's
+def test_the_figures_put_team_evaluations_on_the_x_axis(study, where):
+    index = json.loads((study / where / "index.json").read_text())
     curves = [f for f in index["figures"] if f["kind"] == "curves"]
     assert curves and all(f["x"] == "evals" for f in curves)
     assert {"ccea G", "ccea D", "ccea D++", "k=1"} <= set(curves[0]["methods"])
+    assert (study / where / "curves_duo.png").is_file()
 
 
 def test_the_method_comparison_measures_in_team_evaluations(study):
