@@ -134,8 +134,8 @@ class Job:
         kind = 1 if self.homogeneous else 0 if k.startswith("k=") else 2
         value = int(k[2:]) if kind == 0 else 0
         other = self.algorithm != "cc11es"                         # other algorithms after CC-(1+1)-ES
-        credit = list(CREDIT_LABELS).index(r) if (r := (self.config.get("algorithm") or {}).get("reward")) in \
-            CREDIT_LABELS else 9
+        reward = (self.config.get("algorithm") or {}).get("reward")
+        credit = list(CREDIT_LABELS).index(reward) if reward in CREDIT_LABELS else len(CREDIT_LABELS)
         return (setup_rank(self.setup), self.setup, other, self.algorithm if other else "", credit, kind, value, k,
                 self.strict, self.name)
 
