@@ -1,6 +1,7 @@
 """The CCEA baseline and its credits: G, D and D++ against hand-computed values on hand-built positions; the runs
 resume bit-identically, count their team evaluations, and run through the CLI with figures and recordings."""
 
+import json
 import os
 import signal
 import subprocess
@@ -123,6 +124,8 @@ def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
     assert sorted(p.name for p in (sweep / "figures").glob("curves_*.png")) == ["curves_duo.png"]
     for run in sweep.glob("*/runs/seed_*"):
         assert (run / "run.rrd").stat().st_size > 0 and (run / "behaviour.npz").is_file()
+    for summary in sweep.glob("*/summary.json"):                  # what the analysis puts on its x-axis
+        assert json.loads(summary.read_text())["evals_per_generation"] == 11
 
 
 def _dpp_reference(world, xy):

@@ -107,9 +107,9 @@ class Job:
 
     @property
     def evals_per_generation(self) -> float:
-        """Team evaluations per generation: an exported job's ``summary.json`` says it; a run that records the
-        ``team_evals`` series (algorithms that spend more than one per generation) gives it; else 1, or 2 under
-        ``evaluation.fresh_ic`` (CC-(1+1)-ES re-scores the parents)."""
+        """Team evaluations per generation, as the job's ``summary.json`` records it (the algorithm's
+        :meth:`~rovermarl.algorithms.Algorithm.evaluations_per_generation`); for jobs from before that key, from the
+        runs' ``team_evals`` series if they record one, else 1."""
         given = (_read_json(self.path / "summary.json") or {}).get("evals_per_generation")
         if given is not None:
             return float(given)
@@ -118,7 +118,7 @@ class Job:
                 with np.load(run.path / "curve.npz") as curve:
                     if "team_evals" in curve and len(curve["team_evals"]):
                         return float(curve["team_evals"][-1] - 1) / len(curve["team_evals"])
-        return 2.0 if (self.config.get("evaluation") or {}).get("fresh_ic") else 1.0
+        return 1.0
 
     def evals(self, generations) -> np.ndarray:
         """Team evaluations spent after ``generations`` (the initial team's one included)."""

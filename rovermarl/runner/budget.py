@@ -50,17 +50,16 @@ def available_memory() -> float:
     return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
-def estimate(plain: dict, series_bytes: int = 32, per_generation: float | None = None) -> Estimate:
+def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -> Estimate:
     """The estimate of a plain composed config; ``series_bytes`` is the algorithm's bytes per generation and
     ``per_generation`` its team evaluations per generation (:meth:`Algorithm.evaluations_per_generation
-    <rovermarl.algorithms.Algorithm.evaluations_per_generation>`; None: 1, or 2 under ``evaluation.fresh_ic``)."""
+    <rovermarl.algorithms.Algorithm.evaluations_per_generation>`)."""
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
     d = 3 * p + 2 * n
     genome = (d + 3) * h + 2
     seeds = int(plain["seeds"])
-    fresh = bool((plain.get("evaluation") or {}).get("fresh_ic", False))
     memory = {
         "records": 1.0 * batch_size(plain, series_bytes) * run_bytes(plain, series_bytes),   # the driver's runs
         "team": 3.0 * n * genome * 8,                                          # parents, children, the world's copy
@@ -70,7 +69,6 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float | None =
     evaluation_s = e * t * n * ns * 1e-9
     par = plain.get("parallel") or {}
     cpus = 1 if par.get("backend") == "serial" else int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count())
-    per_generation = (2 if fresh else 1) if per_generation is None else per_generation
     job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
 
@@ -87,7 +85,7 @@ def batch_size(plain: dict, series_bytes: int = 32, memory: float | None = None)
     return int(max(1, min(int(plain["seeds"]), memory / 4 // run_bytes(plain, series_bytes))))
 
 
-def check(plain: dict, series_bytes: int = 32, per_generation: float | None = None) -> Estimate:
+def check(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -> Estimate:
     """Raise :class:`~rovermarl.errors.ConfigError` for a job this machine cannot do; else its estimate."""
     sigma = (plain.get("mutation") or {}).get("sigma")
     if isinstance(sigma, (int, float)) and not isinstance(sigma, bool) and abs(sigma) > SIGMA_LIMIT:

@@ -53,8 +53,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     job, job_dir = to_plain(cfg), Path(job_dir)
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
-    est = budget.estimate(job, series_bytes(series),
-                          built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
+    per_generation = built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"])
+    est = budget.estimate(job, series_bytes(series), per_generation)
     if est.job_s > LONG_JOB_S:
         log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
                  budget.size(est.total_memory))
@@ -122,6 +122,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     wall = time.perf_counter() - t0
     summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
                         heldout=heldout)
+    summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
     write_json(summary_path, summary)
     with open(job_dir / "invocations.jsonl", "a") as f:                  # compute of every launch, for totals
         f.write(json.dumps({"finished_at": time.time(), "wall_time_s": wall, "team_evals": summary["team_evals"],
