@@ -37,9 +37,14 @@ so far in the world's reading (the episode's return after the last step, bit-ide
 from __future__ import annotations
 
 import numpy as np
-from gymnasium import spaces
-from pettingzoo import ParallelEnv
-from pettingzoo.utils.conversions import parallel_to_aec
+
+try:
+    from gymnasium import spaces
+    from pettingzoo import ParallelEnv
+    from pettingzoo.utils.conversions import parallel_to_aec
+except ModuleNotFoundError as e:                       # an optional extra: say how to get it
+    raise ModuleNotFoundError(f"rovermarl.pettingzoo needs {e.name}: pip install 'rovermarl[pettingzoo]'",
+                              name=e.name) from None
 
 from rovermarl.env import World, kernel, make_world
 
