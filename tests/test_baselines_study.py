@@ -51,13 +51,62 @@ def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
     assert (study / "results" / "baselines.md").read_text() == text
 
 
-@pytest.mark.parametrize("where", ["sweep/figures", "results/figures"])   # the end-of-sweep callback; the launcher's
-def test_the_figures_put_team_evaluations_on_the_x_axis(study, where):
-    index = json.loads((study / where / "index.json").read_text())
+def test_the_figures_put_team_evaluations_on_the_x_axis(study):
+    index = json.loads((study / "sweep" / "figures" / "index.json").read_text())   # the end-of-sweep callback's
     curves = [f for f in index["figures"] if f["kind"] == "curves"]
     assert curves and all(f["x"] == "evals" for f in curves)
     assert {"ccea G", "ccea D", "ccea D++", "k=1"} <= set(curves[0]["methods"])
-    assert (study / where / "curves_duo.png").is_file()
+    assert (study / "sweep" / "figures" / "curves_duo.png").is_file()
+    jobs = json.loads((study / "results" / "baselines.json").read_text())["jobs"]   # the launcher's, from the json
+    for j in jobs:
+        assert j["curve"]["evals"][0] == 1 and j["curve"]["evals"][-1] == j["team_evals_per_run"]
+        assert len(j["curve"]["evals"]) == len(j["curve"]["median"]) > 10
+        assert all(a <= m <= b for a, m, b in zip(j["curve"]["q1"], j["curve"]["median"], j["curve"]["q3"],
+                                                  strict=True))
+    assert (study / "results" / "figures" / "baselines_duo.png").stat().st_size > 10_000
+
+
+def test_a_study_resumes_from_its_committed_results_without_its_sweep_dir(study, tmp_path):
+    """A new session has the committed results but not outputs/: the jobs there are skipped, the others run, and
+    the report then holds both."""
+    results = tmp_path / "results"
+    results.mkdir()
+    data = json.loads((study / "results" / "baselines.json").read_text())
+    data["jobs"] = [j for j in data["jobs"] if j["method"] != "ccea D"]           # as if ccea D had not finished
+    (results / "baselines.json").write_text(json.dumps(data))
+    env = {**os.environ, "PYTHON": sys.executable, "EVALS": "111", "SEEDS": "2", "SETUPS": "duo",
+           "OUT": str(tmp_path / "sweep"), "RESULTS": str(results), "FIGURES": "no"}
+    proc = subprocess.run(["bash", "launchers/baselines.sh", "parallel=serial"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stderr.count("baselines.json: skipped") == 5
+    assert [p.name for p in (tmp_path / "sweep").iterdir() if (p / "summary.json").is_file()] == [
+        next(j["job"] for j in json.loads((study / "results" / "baselines.json").read_text())["jobs"]
+             if j["method"] == "ccea D")]
+    again = json.loads((results / "baselines.json").read_text())["jobs"]
+    before = json.loads((study / "results" / "baselines.json").read_text())["jobs"]
+    assert [j["method"] for j in again] == [j["method"] for j in before]
+    assert [j["runs"] for j in again] == [j["runs"] for j in before]                 # the same numbers, rerun
+    assert "In progress: 6 of 18 jobs; to come: k=1 on solo," in baselines.report(results)[0]   # duo is whole
+
+
+def test_a_sweep_at_another_budget_does_not_join_the_results(study, tmp_path):
+    data = json.loads((study / "results" / "baselines.json").read_text())
+    data["jobs"] = [j for j in data["jobs"] if j["method"] != "k=1"]
+    for j in data["jobs"]:                                                          # other jobs, at three seeds
+        j["setup"], j["runs"]["2"] = "solo", j["runs"]["0"]
+    (tmp_path / "baselines.json").write_text(json.dumps(data))
+    with pytest.raises(baselines.ResultsError, match="k=2 on solo has 3 seeds at 112 team evaluations per run, "
+                                                     "k=1 on duo has 2 at 112: another budget"):
+        baselines.export(study / "sweep", tmp_path, log=lambda m: None)
+    assert json.loads((tmp_path / "baselines.json").read_text()) == data            # left as it was
+
+
+def test_a_partial_study_says_which_jobs_are_to_come(study, tmp_path):
+    data = json.loads((study / "results" / "baselines.json").read_text())
+    (tmp_path / "baselines.json").write_text(json.dumps(data))
+    text, _ = baselines.report(tmp_path)
+    assert "In progress: 6 of 18 jobs; to come: k=1 on solo, k=2 on solo," in text and "ccea D++ on trio." in text
 
 
 def test_the_method_comparison_measures_in_team_evaluations(study):

@@ -8,8 +8,8 @@
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
-- ``baselines {export SWEEP_DIR RESULTS_DIR, report RESULTS_DIR}``: the baselines study, CC-(1+1)-ES against the
-  CCEA with G, D and D++ (see :mod:`rovermarl.analysis.baselines`).
+- ``baselines {export SWEEP_DIR RESULTS_DIR, done|report|figures RESULTS_DIR}``: the baselines study, CC-(1+1)-ES
+  against the CCEA with G, D and D++ (see :mod:`rovermarl.analysis.baselines`).
 
 Bad input exits with status 2 and one line on stderr.
 """
@@ -53,9 +53,10 @@ def parser() -> argparse.ArgumentParser:
     r = sub.add_parser("readings", help="the readings study: export a sweep, its lifting readings, the report")
     r.add_argument("action", choices=("export", "lifting", "report"))
     r.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; lifting, report: RESULTS_DIR")
-    b = sub.add_parser("baselines", help="the baselines study: export a sweep, the report")
-    b.add_argument("action", choices=("export", "report"))
-    b.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; report: RESULTS_DIR")
+    b = sub.add_parser("baselines", help="the baselines study: export a sweep, the jobs done, the report, figures")
+    b.add_argument("action", choices=("export", "done", "report", "figures"))
+    b.add_argument("paths", type=Path, nargs="+",
+                   help="export: SWEEP_DIR RESULTS_DIR; done, report, figures: RESULTS_DIR")
     return p
 
 
@@ -96,6 +97,10 @@ def _baselines(action: str, paths: list[Path]) -> None:
     _paths("baselines", action, paths)
     if action == "export":
         baselines.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+    elif action == "done":
+        print("".join(f"{setup} {method}\n" for setup, method in baselines.done(paths[0])), end="")
+    elif action == "figures":
+        print("".join(f"{path}\n" for path in baselines.figures(paths[0])), end="")
     else:
         print(baselines.report(paths[0])[0], end="")
 

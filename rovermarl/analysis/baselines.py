@@ -1,8 +1,12 @@
 """The baselines study: CC-(1+1)-ES against the classic rover-domain CCEA with G, D and D++ at an equal budget of
 team evaluations (``launchers/baselines.sh``, ``docs/BASELINES.md``).
 
-- :func:`export`: a baselines sweep -> ``RESULTS/baselines.json``, a few numbers per run and the compute spent;
-- :func:`report`: ``RESULTS/baselines.md`` (the table of ``docs/BASELINES.md``) from ``baselines.json``.
+- :func:`export`: a baselines sweep -> ``RESULTS/baselines.json``, a few numbers per run, a compact score curve per
+  job and the compute spent. Jobs already there and not in the sweep are kept (at the same budget), so a study that
+  spans sessions accumulates its finished jobs in the committed results (:func:`done` lists them);
+- :func:`report`: ``RESULTS/baselines.md`` (the table of ``docs/BASELINES.md``) from ``baselines.json``;
+- :func:`figures`: ``RESULTS/figures/baselines_<setup>.png``, median score (quartile band) against team evaluations,
+  from the compact curves.
 
 Per run: ``final`` (the score of its last generation: the parent team for cc11es, the team of each population's
 best for ccea, both on the run's 16 initial conditions), ``heldout`` (run.json's held-out score) and, per level,
@@ -22,14 +26,17 @@ from rovermarl.analysis.export import compute_of
 from rovermarl.analysis.levels import setup_rank
 from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
-from rovermarl.record.outputs import first_reaching
+from rovermarl.record.outputs import atomic_open, first_reaching
 
 LEVELS = {"solo": (3, 4), "duo": (4, 5, 6), "trio": (4, 5)}   # up to each setup's optimum (4, 6 and 5)
+METHODS = ("k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++")   # the study's jobs: every method, every setup
 REFERENCE = "k=1"                                            # the method every other is tested against
+CURVE_POINTS = 101                                           # points of a job's compact curve
 
 
 def export(sweep: Path, out: Path, log=print) -> dict:
-    """Write ``out/baselines.json`` from every finished job of a baselines sweep; returns it."""
+    """Write ``out/baselines.json`` from every finished job of a baselines sweep, keeping the jobs already there that
+    the sweep does not hold (same seed count and budget, else a :class:`ResultsError`); returns it."""
     jobs, notes = find_jobs(sweep)
     for note in notes:
         log(note)
@@ -47,18 +54,52 @@ def export(sweep: Path, out: Path, log=print) -> dict:
         entries.append({"job": job.path.name, "setup": job.setup, "method": job.label, "generations": generations,
                         "evals_per_generation": job.evals_per_generation,
                         "team_evals_per_run": int(job.evals(generations)), "runs": runs,
-                        "compute": compute_of(job)})
+                        "curve": _curve(job), "compute": compute_of(job)})
     if not entries:
         raise ResultsError(f"{sweep}: no finished job of a baselines sweep")
+    entries = _merged(out / "baselines.json", entries)
     data = {"jobs": sorted(entries, key=lambda e: (setup_rank(e["setup"]), e["setup"], _method_rank(e["method"])))}
     out.mkdir(parents=True, exist_ok=True)
-    (out / "baselines.json").write_text(json.dumps(data, indent=1) + "\n")
+    with atomic_open(out / "baselines.json", "w") as f:
+        f.write(json.dumps(data, indent=1) + "\n")
     return data
 
 
+def done(results: Path) -> list[tuple[str, str]]:
+    """The (setup, method) jobs that ``results/baselines.json`` holds ([] if none)."""
+    if not (Path(results) / "baselines.json").is_file():
+        return []
+    return [(j["setup"], j["method"]) for j in _load(results)]
+
+
+def _curve(job) -> dict:
+    """A job's score over its runs at ``CURVE_POINTS`` generations: team evaluations, median and quartiles."""
+    generations = len(job.runs[0].score) - 1
+    g = np.unique(np.linspace(0, generations, CURVE_POINTS).round().astype(np.int64))
+    q1, median, q3 = np.percentile(np.stack([run.score[g] for run in job.runs]), [25, 50, 75], axis=0)
+    return {"evals": [int(e) for e in job.evals(g)],
+            **{name: [round(float(v), 4) for v in q] for name, q in (("median", median), ("q1", q1), ("q3", q3))}}
+
+
+def _merged(path: Path, entries: list[dict]) -> list[dict]:
+    """``entries`` plus the jobs of ``path`` (if any) that they do not replace, all at one seed count and budget."""
+    key = lambda e: (e["setup"], e["method"])   # noqa: E731
+    new = {key(e) for e in entries}
+    kept = [e for e in (_load(path.parent) if path.is_file() else []) if key(e) not in new]
+    jobs = kept + entries
+    step = max(j["evals_per_generation"] for j in jobs)   # equal budgets differ by less than one generation's cost
+    first = jobs[0]
+    for j in jobs:
+        if len(j["runs"]) != len(first["runs"]) or abs(j["team_evals_per_run"] - first["team_evals_per_run"]) > step:
+            raise ResultsError(
+                f"{path}: {first['method']} on {first['setup']} has {len(first['runs'])} seeds at "
+                f"{first['team_evals_per_run']:,} team evaluations per run, {j['method']} on {j['setup']} has "
+                f"{len(j['runs'])} at {j['team_evals_per_run']:,}: another budget (export into another dir)")
+    return jobs
+
+
 def _method_rank(method: str) -> tuple:
-    order = ("k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++")
-    return (order.index(method) if method in order else len(order), method)
+    return (METHODS.index(method) if method in METHODS else len(METHODS), method)
 
 
 def _load(results: Path) -> list[dict]:
@@ -79,8 +120,12 @@ def report(results: Path) -> tuple[str, dict]:
     jobs = _load(results)
     budgets = sorted({j["team_evals_per_run"] for j in jobs})
     seeds = sorted({len(j["runs"]) for j in jobs})
+    have = {(j["setup"], j["method"]) for j in jobs}
+    missing = [f"{m} on {s}" for s in LEVELS for m in METHODS if (s, m) not in have]
+    progress = (f"In progress: {len(have)} of {len(LEVELS) * len(METHODS)} jobs; to come: {', '.join(missing)}. "
+                if missing else "")
     lines = ["<!-- generated by `python -m rovermarl.analysis baselines report results/baselines`; do not edit -->",
-             "", f"Budget: {min(budgets):,} to {max(budgets):,} team evaluations per run (the initial team's "
+             "", f"{progress}Budget: {min(budgets):,} to {max(budgets):,} team evaluations per run (the initial team's "
              f"included); {', '.join(map(str, seeds))} seeds per job. `final`: median score of the last generation "
              "with a percentile-bootstrap 95% CI; `at L`: runs whose curve reached L, Wilson 95% CI; `evals to L`: "
              "median team evaluations to reach L with a bootstrap CI (`never`: the median run did not); "
@@ -119,3 +164,24 @@ def report(results: Path) -> tuple[str, dict]:
     text = "\n".join(lines) + "\n"
     (Path(results) / "baselines.md").write_text(text)
     return text, numbers
+
+
+def figures(results: Path) -> list[Path]:
+    """``results/figures/baselines_<setup>.png``: each method's median score (quartile band) against team
+    evaluations, from ``baselines.json``'s compact curves; returns the files written."""
+    from rovermarl.analysis.draw import new_figure, save
+
+    jobs, files = _load(results), []
+    for setup in dict.fromkeys(j["setup"] for j in jobs):
+        fig = new_figure(6.0, 3.6)
+        ax = fig.add_subplot(1, 1, 1)
+        for j in (r for r in jobs if r["setup"] == setup):
+            c, colour = j["curve"], f"C{_method_rank(j['method'])[0] % 10}"   # one colour per method in every setup
+            ax.fill_between(c["evals"], c["q1"], c["q3"], color=colour, alpha=0.15, linewidth=0)
+            ax.plot(c["evals"], c["median"], color=colour, label=j["method"])
+        ax.set(xlabel="team evaluations", ylabel="score (median, quartiles)", title=setup)
+        ax.legend(fontsize=7, loc="lower right")
+        out = Path(results) / "figures"
+        out.mkdir(parents=True, exist_ok=True)
+        files += [out / name for name in save(fig, out, f"baselines_{setup}", ["png"])]
+    return files
