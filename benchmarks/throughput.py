@@ -14,6 +14,11 @@ the per-repeat ratios of rates (above 1: the new kernel is faster). ``World.eval
 numpy reference are measured alternately in this process; the reference's per-episode returns are checked against the
 kernel's (``numpy_return_mismatches`` counts differing episodes).
 
+``stages_ns_per_agent_step`` times the rollout's stage loops alone (``sense_flat``, ``act_flat``, ``move_flat``)
+on the world's starting states, and ``mlp_fma_per_agent_step`` counts the multiply-adds of the MLP there (the
+non-zero input rows times H, plus the output layer), so ``act_fma_per_ns`` says how near the policy runs to the
+core's multiply-add rate.
+
 Rates count process CPU time, which a shared, oversubscribed machine inflates less than wall time
 (``kernel_over_old_wall`` is the kernel ratio in wall time).
 """
@@ -36,6 +41,8 @@ from numba import njit
 from rovermarl import make_world
 from rovermarl.config import compose_config
 from rovermarl.env import kernel, reference
+from rovermarl.env.kernel.math import FAST, sincos_all
+from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
 from rovermarl.runner.chunk import Run, to_plain
 
 
@@ -157,6 +164,50 @@ def loop_rate(cfg: dict, n: int) -> float:
     return n / (time.process_time() - t)
 
 
+@njit(**FAST)
+def _stage_loop(which, reps, genomes, x, y, heading, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, n_ep,
+                hidden, hid, rows, a0, a1, v_max, w_max):
+    """``reps`` calls of one stage loop (0 sense, 1 act, 2 move) on fixed inputs; move works on copies."""
+    for _ in range(reps):
+        if which == 0:
+            sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
+        elif which == 1:
+            act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1)
+        else:
+            move_flat(x.copy(), y.copy(), heading.copy(), sin_h.copy(), cos_h.copy(), a0, a1, v_max, w_max, 0)
+
+
+def stage_profile(world, reps: int, repeats: int) -> dict:
+    """ns per agent-step of each stage loop (best of ``repeats``), and the MLP's multiply-adds per agent-step."""
+    genomes, xy0, h0 = kernel_inputs(world)[:3]
+    n_ep, n = h0.shape
+    ne, d = n * n_ep, 3 * world.poi_xy.shape[0] + 2 * n
+    x, y, heading, sin_h, cos_h, a0, a1 = (np.empty(ne) for _ in range(7))
+    to_flat(xy0[:, :, 0], x)
+    to_flat(xy0[:, :, 1], y)
+    to_flat(h0, heading)
+    sincos_all(heading, sin_h, cos_h)
+    obs = np.empty(d * ne)
+    args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
+            n_ep, world.hidden, np.empty(world.hidden * n_ep), np.empty(d, dtype=np.int64), a0, a1,
+            float(world.v_max), world.w_max)
+    out = {}
+    for which, name in enumerate(("sense", "act", "move")):
+        _stage_loop(which, 1, *args)
+        best = min(_timed(lambda w=which: _stage_loop(w, reps, *args)) for _ in range(repeats))
+        out[name] = round(best / (reps * ne) * 1e9, 2)
+    rows = obs.reshape(d, n, n_ep).any(axis=2).sum(axis=0)                # non-zero input rows per rover
+    fma = float(np.mean(rows)) * world.hidden + 2 * world.hidden
+    return {"stages_ns_per_agent_step": out, "mlp_fma_per_agent_step": round(fma, 1),
+            "act_fma_per_ns": round(fma / out["act"], 2)}
+
+
+def _timed(f) -> float:
+    t = time.process_time()
+    f()
+    return time.process_time() - t
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--setup", default="solo")
@@ -184,6 +235,7 @@ def main() -> None:
     evaluate_rate(world, 50)                                 # warm-up
     loop_rate(cfg, 50)
     numpy_rate(world, 5)
+    stages = stage_profile(world, reps=max(1, a.evals) * world.steps // 4, repeats=a.repeats)
     evaluate, loop, numpy_ = [], [], []
     for _ in range(a.repeats):                               # alternate so machine noise hits all alike
         evaluate.append(evaluate_rate(world, a.evals))
@@ -213,6 +265,7 @@ def main() -> None:
         "evaluate_over_kernel": round(med(evaluate) / med(new), 3),
         "loop_team_evals_per_s": round(med(loop), 1),
         "loop_over_kernel": round(med(loop) / med(new), 3),
+        **stages,
         "numpy_team_evals_per_s": round(med(numpy_), 1),
         "kernel_over_numpy": round(med(new) / med(numpy_), 2),
         "numpy_returns_equal": numpy_bad == 0,
