@@ -3,6 +3,7 @@ waiting or dumping Ray's logs; no Ray process of that driver is left. Only the l
 are touched (never another Ray on the machine)."""
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -12,6 +13,9 @@ import psutil
 import pytest
 
 from tests.conftest import ROOT
+
+# A line of Ray's C++ core: "[2026-12-01 22:25:49,504 E 4139 4282] task_manager.cc:1545: ..."
+RAY_CORE_LINE = re.compile(r"^\[[-0-9: ,]+ [DIWEF] \d+ \d+\] ")
 
 
 def _descendants(pid: int) -> list[psutil.Process]:
@@ -45,6 +49,7 @@ def test_a_dead_ray_stops_the_driver_in_one_line(tmp_path, victim):
     assert proc.returncode not in (0, None)
     lines = [line for line in err.splitlines() if line.strip()]
     assert "Traceback" not in err and len(lines) <= 3, err[-3000:]
+    assert not [line for line in lines if RAY_CORE_LINE.match(line)], err[-3000:]   # RAY_BACKEND_LOG_LEVEL=fatal
     assert lines[-1].startswith("rovermarl.train: error: ") and "relaunch the same command to resume" in lines[-1]
     _, left = psutil.wait_procs(started, timeout=10)
     assert not left, [(p.pid, p.name()) for p in left]

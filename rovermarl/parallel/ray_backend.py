@@ -4,9 +4,12 @@ and run states (arrays and numbers) cross to the workers; the driver writes ever
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import socket
+import sys
+import tempfile
 import time
 
 import ray
@@ -90,11 +93,36 @@ def ensure_ray(ray_cfg) -> None:
     if ray.is_initialized():
         return
     common = {"log_to_driver": False, "logging_level": logging.ERROR}
+    # Ray's C++ core copies its error lines to the driver's stderr; when Ray dies under a sweep they would come
+    # before our one-line error. A user's own setting wins (README, "Configuration").
+    os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "fatal")
     if ray_cfg.address:
         _probe(ray_cfg.address)
-        ray.init(address=ray_cfg.address, **common)
-    else:
-        ray.init(num_cpus=ray_cfg.num_cpus or os.cpu_count(), include_dashboard=False, **common)
+    with _held_stderr():
+        if ray_cfg.address:
+            ray.init(address=ray_cfg.address, **common)
+        else:
+            ray.init(num_cpus=ray_cfg.num_cpus or os.cpu_count(), include_dashboard=False, **common)
+
+
+@contextlib.contextmanager
+def _held_stderr():
+    """Hold what is written to file descriptor 2 (Ray's C++ core announces its log level there as it starts) and
+    show it only if the block fails."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            yield
+        except BaseException:
+            os.dup2(saved, 2)
+            held.seek(0)
+            sys.stderr.write(held.read().decode(errors="replace"))
+            raise
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
 
 
 def _probe(address: str, timeout: float = 5.0) -> None:
