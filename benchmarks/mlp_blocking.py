@@ -1,0 +1,183 @@
+"""How the MLP's hidden layer is blocked, measured: the kernel's ``_mlp`` (4 input rows by 2 hidden units per pass
+over the episodes) against variants with R rows by W units per pass, each summing every (unit, episode) over the
+inputs in the same order, so bit-identical to it (checked: ``equal``). Prints one JSON line.
+
+    python benchmarks/mlp_blocking.py [--setup solo] [--reps 20000] [--repeats 15] [--variants 4x2,4x4,8x1]
+
+Each variant is compiled with the kernel's options (FMA contraction only) and timed in the same process as the
+kernel's ``_mlp``, in rotating order, on one team's observations of random rover states. ``ns_per_agent_step`` is
+the best of ``--repeats``; ``over_kernel`` the median of the per-repeat speed ratios (above 1: faster than the
+kernel). ``4x2`` is the kernel's own blocking compiled again: an A/A control for code placement and noise.
+``no_tanh`` replaces the hidden layer's tanh by a multiply (wrong results, ``equal`` false): the difference to
+``kernel`` is what the tanh costs. The sum per (unit, episode) is a chain of dependent multiply-adds, one per
+non-zero input row; only the number of chains in flight and the loads and stores around them change between
+variants.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+from numba import njit
+
+from rovermarl import make_world
+from rovermarl.env.kernel import math as kmath
+from rovermarl.env.kernel.math import FAST, sincos_all
+from rovermarl.env.kernel.stages import _mlp, sense_flat
+
+TAIL = """    for r in range(nb, nr):
+        k = rows[r]
+        ok = U(k * ne + q0)
+        for u in range(hidden):
+            w = genome[U(k * hidden + u)]
+            ou = U(u * ep)
+            for e in range(ep):
+                hid[ou + U(e)] += obs[ok + U(e)] * w
+    for v in range(hidden * ep):
+        hid[v] = {squash}
+    b0 = genome[U(o_b2)]
+    b1 = genome[U(o_b2 + 1)]
+    for e in range(ep):
+        out0[e] = b0
+        out1[e] = b1
+    for u in range(hidden):
+        w0 = genome[U(o_w2 + 2 * u)]
+        w1 = genome[U(o_w2 + 2 * u + 1)]
+        ou = U(u * ep)
+        for e in range(ep):
+            out0[e] += hid[ou + U(e)] * w0
+            out1[e] += hid[ou + U(e)] * w1
+    for e in range(ep):
+        out0[e] = tanh(out0[e])
+        out1[e] = tanh(out1[e])
+"""
+
+HEAD = """def mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
+    d = obs.shape[0] // ne
+    ep = out0.shape[0]
+    o_b1 = d * hidden
+    o_w2 = o_b1 + hidden
+    o_b2 = o_w2 + 2 * hidden
+    for u in range(hidden):
+        b = genome[U(o_b1 + u)]
+        for e in range(ep):
+            hid[U(u * ep + e)] = b
+    nr = 0
+    for k in range(d):
+        ok = U(k * ne + q0)
+        nz = False
+        for e in range(ep):
+            nz |= obs[ok + U(e)] != 0.0
+        if nz:
+            rows[nr] = k
+            nr += 1
+"""
+
+
+def chain(acc: str, rows: int, weight) -> str:
+    """``(((acc + obs[o0 + x] * w0) + obs[o1 + x] * w1) ...)``: the inputs in index order."""
+    for i in range(rows):
+        acc = f"({acc} + obs[o{i} + x] * {weight(i)})"
+    return acc
+
+
+def variant_source(rows: int, units: int, squash: str = "tanh(hid[v])") -> str:
+    """Source of ``mlp`` with ``rows`` input rows by ``units`` hidden units per pass over the episodes."""
+    lines = [HEAD, f"    nb = nr - nr % {rows}", f"    hb = hidden - hidden % {units}",
+             f"    for r in range(0, nb, {rows}):"]
+    for i in range(rows):
+        lines += [f"        o{i} = U(rows[r + {i}] * ne + q0)", f"        g{i} = U(rows[r + {i}] * hidden)"]
+    lines.append(f"        for u in range(0, hb, {units}):")
+    for j in range(units):
+        lines += [f"            w{i}_{j} = genome[g{i} + U(u + {j})]" for i in range(rows)]
+        lines.append(f"            h{j} = U((u + {j}) * ep)")
+    lines += ["            for e in range(ep):", "                x = U(e)"]
+    lines += [f"                hid[h{j} + x] = {chain(f'hid[h{j} + x]', rows, lambda i, j=j: f'w{i}_{j}')}"
+              for j in range(units)]
+    lines += ["        for u in range(hb, hidden):"]
+    lines += [f"            v{i} = genome[g{i} + U(u)]" for i in range(rows)]
+    lines += ["            h = U(u * ep)", "            for e in range(ep):", "                x = U(e)",
+              f"                hid[h + x] = {chain('hid[h + x]', rows, lambda i: f'v{i}')}"]
+    return "\n".join(lines) + "\n" + TAIL.format(squash=squash)
+
+
+def compile_variant(source: str):
+    """``source`` compiled with the kernel's options (not cached: it has no file)."""
+    namespace = {"U": np.uint64, "tanh": kmath.tanh}
+    exec(source, namespace)                                                  # noqa: S102 - our own template
+    options = {k: v for k, v in FAST.items() if k != "cache"}
+    return njit(**options)(namespace["mlp"])
+
+
+def team_loop(mlp):
+    """A compiled loop of ``reps`` calls of ``mlp`` for every rover of a team: the act stage of one step."""
+    @njit(**{k: v for k, v in FAST.items() if k != "cache"})
+    def loop(genomes, obs, n_ep, hidden, reps, hid, rows, a0, a1):
+        ne = a0.shape[0]
+        for _ in range(reps):
+            for i in range(genomes.shape[0]):
+                q0 = i * n_ep
+                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+    return loop
+
+
+def inputs(world, seed: int = 0):
+    """A random team and its observations of random rover states inside the POI field (dense inputs)."""
+    rng = np.random.default_rng(seed)
+    n_ep, n = world.episodes, world.n_rovers
+    ne, d = n * n_ep, 3 * world.poi_xy.shape[0] + 2 * n
+    lo, hi = world.poi_xy.min(axis=0), world.poi_xy.max(axis=0)
+    x, y = rng.uniform(lo[0], hi[0], ne), rng.uniform(lo[1], hi[1], ne)
+    heading, sin_h, cos_h = rng.uniform(-np.pi, np.pi, ne), np.empty(ne), np.empty(ne)
+    sincos_all(heading, sin_h, cos_h)
+    obs = np.empty(d * ne)
+    sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs)
+    genomes = rng.uniform(-2, 2, (n, world.n_params))
+    return genomes, obs, n_ep, world.hidden, d, ne
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--setup", default="solo")
+    p.add_argument("--reps", type=int, default=20000, help="team act stages per timing")
+    p.add_argument("--repeats", type=int, default=15)
+    p.add_argument("--variants", default="4x2,4x1,2x2,8x1,8x2,4x4,2x4,1x16",
+                   help="ROWSxUNITS per pass, comma-separated")
+    a = p.parse_args()
+    genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup))
+    mlps = {"kernel": _mlp, "no_tanh": compile_variant(variant_source(4, 2, "hid[v] * 0.5"))}
+    for v in a.variants.split(","):
+        rows, units = (int(s) for s in v.split("x"))
+        mlps[v] = compile_variant(variant_source(rows, units))
+    loops, outs = {}, {}
+    for name, mlp in mlps.items():
+        loops[name] = team_loop(mlp)
+        outs[name] = (np.empty(ne), np.empty(ne))
+        loops[name](genomes, obs, n_ep, hidden, 1, np.empty(hidden * n_ep), np.empty(d, np.int64), *outs[name])
+    names = list(loops)
+    seconds = {name: [] for name in names}
+    for r in range(a.repeats):                                       # rotating order: noise hits all alike
+        for name in names[r % len(names):] + names[:r % len(names)]:
+            t = time.process_time()
+            loops[name](genomes, obs, n_ep, hidden, a.reps, np.empty(hidden * n_ep), np.empty(d, np.int64),
+                        np.empty(ne), np.empty(ne))
+            seconds[name].append(time.process_time() - t)
+    ns = {name: min(seconds[name]) / (a.reps * ne) * 1e9 for name in names}
+    kernel_s = np.array(seconds["kernel"])
+    ref = outs["kernel"]
+    print(json.dumps({
+        "benchmark": "mlp_blocking", "setup": a.setup, "reps": a.reps, "repeats": a.repeats,
+        "clock": "process CPU time", "cpus": os.cpu_count(),
+        "ns_per_agent_step": {name: round(v, 2) for name, v in ns.items()},
+        "over_kernel": {name: round(float(np.median(kernel_s / np.array(seconds[name]))), 3) for name in names},
+        "equal": {name: all(np.array_equal(x, y) for x, y in zip(outs[name], ref, strict=True)) for name in names},
+        "tanh_share_of_act": round(1 - ns["no_tanh"] / ns["kernel"], 3),
+    }))
+
+
+if __name__ == "__main__":
+    main()
