@@ -17,6 +17,7 @@ variants.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import os
 import time
@@ -29,53 +30,17 @@ from rovermarl.env.kernel import math as kmath
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import _mlp, sense_flat
 
-TAIL = """    for r in range(nb, nr):
-        k = rows[r]
-        ok = U(k * ne + q0)
-        for u in range(hidden):
-            w = genome[U(k * hidden + u)]
-            ou = U(u * ep)
-            for e in range(ep):
-                hid[ou + U(e)] += obs[ok + U(e)] * w
-    for v in range(hidden * ep):
-        hid[v] = {squash}
-    b0 = genome[U(o_b2)]
-    b1 = genome[U(o_b2 + 1)]
-    for e in range(ep):
-        out0[e] = b0
-        out1[e] = b1
-    for u in range(hidden):
-        w0 = genome[U(o_w2 + 2 * u)]
-        w1 = genome[U(o_w2 + 2 * u + 1)]
-        ou = U(u * ep)
-        for e in range(ep):
-            out0[e] += hid[ou + U(e)] * w0
-            out1[e] += hid[ou + U(e)] * w1
-    for e in range(ep):
-        out0[e] = tanh(out0[e])
-        out1[e] = tanh(out1[e])
-"""
+SPLIT = "    n4 = nr - nr % 4\n"                   # the kernel's blocked loop starts here ...
+RESUME = "    for r in range(n4, nr):\n"               # ... and its single-row remainder here
 
-HEAD = """def mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
-    d = obs.shape[0] // ne
-    ep = out0.shape[0]
-    o_b1 = d * hidden
-    o_w2 = o_b1 + hidden
-    o_b2 = o_w2 + 2 * hidden
-    for u in range(hidden):
-        b = genome[U(o_b1 + u)]
-        for e in range(ep):
-            hid[U(u * ep + e)] = b
-    nr = 0
-    for k in range(d):
-        ok = U(k * ne + q0)
-        nz = False
-        for e in range(ep):
-            nz |= obs[ok + U(e)] != 0.0
-        if nz:
-            rows[nr] = k
-            nr += 1
-"""
+
+def kernel_parts() -> tuple[str, str]:
+    """The kernel's ``_mlp`` source before its blocked loop (from ``def``) and from its remainder loop on."""
+    source = inspect.getsource(_mlp.py_func)
+    if SPLIT not in source or RESUME not in source:
+        raise RuntimeError("the kernel's _mlp changed shape: update benchmarks/mlp_blocking.py")
+    source = source[source.index("def _mlp("):]
+    return source[:source.index(SPLIT)], source[source.index(RESUME):]
 
 
 def chain(acc: str, rows: int, weight) -> str:
@@ -86,9 +51,13 @@ def chain(acc: str, rows: int, weight) -> str:
 
 
 def variant_source(rows: int, units: int, squash: str = "tanh(hid[v])") -> str:
-    """Source of ``mlp`` with ``rows`` input rows by ``units`` hidden units per pass over the episodes."""
-    lines = [HEAD, f"    nb = nr - nr % {rows}", f"    hb = hidden - hidden % {units}",
-             f"    for r in range(0, nb, {rows}):"]
+    """Source of ``_mlp`` with ``rows`` input rows by ``units`` hidden units per pass over the episodes; the rest
+    (bias, zero-row skip, remainder rows, output layer) is the kernel's own code."""
+    head, tail = kernel_parts()
+    if "hid[v] = tanh(hid[v])" not in tail:
+        raise RuntimeError("the kernel's _mlp changed shape: update benchmarks/mlp_blocking.py")
+    lines = [head.rstrip("\n"), f"    n4 = nr - nr % {rows}", f"    hb = hidden - hidden % {units}",
+             f"    for r in range(0, n4, {rows}):"]
     for i in range(rows):
         lines += [f"        o{i} = U(rows[r + {i}] * ne + q0)", f"        g{i} = U(rows[r + {i}] * hidden)"]
     lines.append(f"        for u in range(0, hb, {units}):")
@@ -102,7 +71,7 @@ def variant_source(rows: int, units: int, squash: str = "tanh(hid[v])") -> str:
     lines += [f"            v{i} = genome[g{i} + U(u)]" for i in range(rows)]
     lines += ["            h = U(u * ep)", "            for e in range(ep):", "                x = U(e)",
               f"                hid[h + x] = {chain('hid[h + x]', rows, lambda i: f'v{i}')}"]
-    return "\n".join(lines) + "\n" + TAIL.format(squash=squash)
+    return "\n".join(lines) + "\n" + tail.replace("hid[v] = tanh(hid[v])", f"hid[v] = {squash}")
 
 
 def compile_variant(source: str):
@@ -110,7 +79,7 @@ def compile_variant(source: str):
     namespace = {"U": np.uint64, "tanh": kmath.tanh}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
-    return njit(**options)(namespace["mlp"])
+    return njit(**options)(namespace["_mlp"])
 
 
 def team_loop(mlp):
