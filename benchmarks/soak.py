@@ -11,6 +11,7 @@ wraps the chunk function; the package writes no such log).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import signal
@@ -26,12 +27,15 @@ import psutil
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def kill_worker() -> bool:
-    """SIGKILL one Ray worker that is executing a chunk; False if none is running right now."""
-    for p in psutil.process_iter(["pid", "cmdline"]):
-        if " ".join(p.info["cmdline"] or []).startswith("ray::ChunkWorker.advance"):
-            os.kill(p.info["pid"], signal.SIGKILL)
-            return True
+def kill_worker(driver: int) -> bool:
+    """SIGKILL one worker of the driver's Ray (its descendant: never another Ray on the machine) that is executing
+    a chunk; False if none is running right now."""
+    with contextlib.suppress(psutil.Error):
+        for p in psutil.Process(driver).children(recursive=True):
+            with contextlib.suppress(psutil.Error):
+                if " ".join(p.cmdline()).startswith("ray::ChunkWorker.advance"):
+                    os.kill(p.pid, signal.SIGKILL)
+                    return True
     return False
 
 
@@ -71,7 +75,7 @@ def main() -> None:
             if time.time() < next_kill:
                 continue
             if turn % 2 == 0:                                   # a worker's turn: retry until one runs a chunk
-                if kill_worker():
+                if kill_worker(driver.pid):
                     kills["worker"] += 1
                     turn, next_kill = turn + 1, time.time() + a.period
                 continue
@@ -98,7 +102,9 @@ def main() -> None:
         from rovermarl.runner.job import run_job
         same = True
         for k in (1, 2):
-            job = f"generations={a.generations},k={k},seeds={a.seeds},setup=duo"
+            job = f"generations={a.generations},k={k},setup=duo"          # seeds is not part of a job's dir name
+            if not (out / "sweep" / job / "runs").is_dir():
+                sys.exit(f"soak: no job dir {out / 'sweep' / job}: the sweep's dir names changed")
             run_job(compose_config("setup=duo", f"k={k}", f"generations={a.generations}", f"seeds={a.seeds}",
                                    "parallel=serial"), out / "reference" / job)
             for f in sorted((out / "reference" / job).glob("runs/*/curve.npz")):

@@ -1,5 +1,6 @@
 """Reliability: SIGKILL of a Ray worker or of the driver mid-sweep; initial-condition shards equal local runs."""
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -42,14 +43,16 @@ def test_ic_shards_equal_local_evaluation(ray_session, tmp_path, fresh):
 
 
 def _kill_one_running_task(killed: list, stop: threading.Event):
-    """SIGKILL the first Ray worker process seen executing a chunk task."""
+    """SIGKILL the first worker of this session's Ray (a descendant of this process, never another Ray on the
+    machine) seen executing a chunk."""
+    me = psutil.Process()
     while not stop.is_set() and not killed:
-        for p in psutil.process_iter(["pid", "cmdline"]):
-            cmd = " ".join(p.info["cmdline"] or [])
-            if cmd.startswith("ray::ChunkWorker.advance"):
-                os.kill(p.info["pid"], signal.SIGKILL)
-                killed.append(p.info["pid"])
-                return
+        for p in me.children(recursive=True):
+            with contextlib.suppress(psutil.Error):
+                if " ".join(p.cmdline()).startswith("ray::ChunkWorker.advance"):
+                    os.kill(p.pid, signal.SIGKILL)
+                    killed.append(p.pid)
+                    return
         time.sleep(0.05)
 
 
