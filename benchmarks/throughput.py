@@ -17,7 +17,9 @@ kernel's (``numpy_return_mismatches`` counts differing episodes).
 ``stages_ns_per_agent_step`` times the rollout's stage loops alone (``sense_flat``, ``act_flat``, ``move_flat``)
 on the world's starting states, and ``mlp_fma_per_agent_step`` counts the multiply-adds of the MLP there (the
 non-zero input rows times H, plus the output layer), so ``act_fma_per_ns`` says how near the policy runs to the
-core's multiply-add rate.
+core's multiply-add rate. That rate is measured too (``fma_per_ns_peak``: independent chains of float64
+multiply-adds, vectorised, in L1), which gives this machine's float64 limit for the MLP's multiply-adds
+(``mlp_float64_limit_ns_per_agent_step``) and how far the act stage is above it (``act_over_limit``).
 
 Rates count process CPU time, which a shared, oversubscribed machine inflates less than wall time
 (``kernel_over_old_wall`` is the kernel ratio in wall time).
@@ -198,8 +200,31 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
         out[name] = round(best / (reps * ne) * 1e9, 2)
     rows = obs.reshape(d, n, n_ep).any(axis=2).sum(axis=0)                # non-zero input rows per rover
     fma = float(np.mean(rows)) * world.hidden + 2 * world.hidden
+    peak = fma_peak(repeats)
     return {"stages_ns_per_agent_step": out, "mlp_fma_per_agent_step": round(fma, 1),
-            "act_fma_per_ns": round(fma / out["act"], 2)}
+            "act_fma_per_ns": round(fma / out["act"], 2), "fma_per_ns_peak": round(peak, 2),
+            "mlp_float64_limit_ns_per_agent_step": round(fma / peak, 2),
+            "act_over_limit": round(out["act"] / (fma / peak), 2)}
+
+
+@njit(**FAST)
+def _fma_chains(a, b, c, reps):
+    """``reps`` times 32 dependent multiply-adds on every element of ``a`` (M,): independent chains across the
+    elements, vectorised over them, so the core's multiply-add throughput bounds the loop."""
+    for _ in range(reps):
+        for i in range(a.shape[0]):
+            x = a[i]
+            for _ in range(32):
+                x = x * b + c
+            a[i] = x
+
+
+def fma_peak(repeats: int, reps: int = 2000) -> float:
+    """float64 multiply-adds per ns of one core, measured (best of ``repeats``) on 2,048 values in L1."""
+    a = np.random.default_rng(0).uniform(-1.0, 1.0, 2048)
+    _fma_chains(a, 0.999999, 1e-7, 1)
+    best = min(_timed(lambda: _fma_chains(a, 0.999999, 1e-7, reps)) for _ in range(repeats))
+    return reps * a.shape[0] * 32 / best * 1e-9
 
 
 def _timed(f) -> float:
