@@ -8,10 +8,11 @@ Each variant is compiled with the kernel's options (FMA contraction only) and ti
 kernel's ``_mlp``, in rotating order, on one team's observations of random rover states. ``ns_per_agent_step`` is
 the best of ``--repeats``; ``over_kernel`` the median of the per-repeat speed ratios (above 1: faster than the
 kernel). ``4x2`` is the kernel's own blocking compiled again: an A/A control for code placement and noise.
-``no_tanh`` replaces the hidden layer's tanh by a multiply (wrong results, ``equal`` false): the difference to
-``kernel`` is what the tanh costs. The sum per (unit, episode) is a chain of dependent multiply-adds, one per
-non-zero input row; only the number of chains in flight and the loads and stores around them change between
-variants.
+``no_tanh`` replaces the hidden layer's tanh by a multiply, ``no_matmul_no_tanh`` also drops the hidden layer's
+multiply-adds (wrong results, ``equal`` false): ``act_parts_ns`` splits the act stage into the hidden layer's
+multiply-adds, its tanh and the rest (biases, the zero-row scan, the output layer and its tanh). The sum per (unit,
+episode) is a chain of dependent multiply-adds, one per non-zero input row; only the number of chains in flight and
+the loads and stores around them change between variants.
 """
 
 from __future__ import annotations
@@ -118,7 +119,9 @@ def main() -> None:
                    help="ROWSxUNITS per pass, comma-separated")
     a = p.parse_args()
     genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup))
-    mlps = {"kernel": _mlp, "no_tanh": compile_variant(variant_source(4, 2, "hid[v] * 0.5"))}
+    no_tanh = variant_source(4, 2, "hid[v] * 0.5")
+    no_matmul = no_tanh.replace("range(0, n4, 4)", "range(0)").replace("range(n4, nr)", "range(0)")
+    mlps = {"kernel": _mlp, "no_tanh": compile_variant(no_tanh), "no_matmul_no_tanh": compile_variant(no_matmul)}
     for v in a.variants.split(","):
         rows, units = (int(s) for s in v.split("x"))
         mlps[v] = compile_variant(variant_source(rows, units))
@@ -145,6 +148,9 @@ def main() -> None:
         "over_kernel": {name: round(float(np.median(kernel_s / np.array(seconds[name]))), 3) for name in names},
         "equal": {name: all(np.array_equal(x, y) for x, y in zip(outs[name], ref, strict=True)) for name in names},
         "tanh_share_of_act": round(1 - ns["no_tanh"] / ns["kernel"], 3),
+        "act_parts_ns": {"hidden_layer_multiply_adds": round(ns["no_tanh"] - ns["no_matmul_no_tanh"], 2),
+                         "hidden_tanh": round(ns["kernel"] - ns["no_tanh"], 2),
+                         "rest": round(ns["no_matmul_no_tanh"], 2)},
     }))
 
 
