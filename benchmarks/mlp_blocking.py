@@ -1,18 +1,17 @@
-"""How the MLP's hidden layer is blocked, measured: the kernel's ``_mlp`` (4 input rows by 2 hidden units per pass
-over the episodes) against variants with R rows by W units per pass, each summing every (unit, episode) over the
-inputs in the same order, so bit-identical to it (checked: ``equal``). Prints one JSON line.
+"""How the MLP's hidden layer sums its inputs, measured: the kernel's ``_mlp`` (register tiles of 4 hidden units x
+8 episodes, ``rovermarl/env/kernel/simd.py``) against plain loops that numba's vectoriser handles, with R input rows
+by W hidden units per pass over the episodes (``4x2`` was the kernel's until the tiles came). Every variant adds
+each (unit, episode)'s inputs in the same order, so all are bit-identical (checked: ``equal``). Prints one JSON line.
 
     python benchmarks/mlp_blocking.py [--setup solo] [--reps 20000] [--repeats 15] [--variants 4x2,4x4,8x1]
 
 Each variant is compiled with the kernel's options (FMA contraction only) and timed in the same process as the
 kernel's ``_mlp``, in rotating order, on one team's observations of random rover states. ``ns_per_agent_step`` is
 the best of ``--repeats``; ``over_kernel`` the median of the per-repeat speed ratios (above 1: faster than the
-kernel). ``4x2`` is the kernel's own blocking compiled again: an A/A control for code placement and noise.
-``no_tanh`` replaces the hidden layer's tanh by a multiply, ``no_matmul_no_tanh`` also drops the hidden layer's
-multiply-adds (wrong results, ``equal`` false): ``act_parts_ns`` splits the act stage into the hidden layer's
-multiply-adds, its tanh and the rest (biases, the zero-row scan, the output layer and its tanh). The sum per (unit,
-episode) is a chain of dependent multiply-adds, one per non-zero input row; only the number of chains in flight and
-the loads and stores around them change between variants.
+kernel). ``kernel_again`` is the kernel's own code compiled again: an A/A control for code placement and noise.
+``no_tanh`` is the kernel with its hidden tanh replaced by a multiply, ``no_matmul_no_tanh`` also without the
+hidden layer's multiply-adds (wrong results, ``equal`` false): ``act_parts_ns`` splits the act stage into the hidden
+layer's multiply-adds, its tanh and the rest (biases, the zero-row scan, the output layer and its tanh).
 """
 
 from __future__ import annotations
@@ -28,20 +27,28 @@ from numba import njit
 
 from rovermarl import make_world
 from rovermarl.env.kernel import math as kmath
+from rovermarl.env.kernel import simd
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import _mlp, sense_flat
 
-SPLIT = "    n4 = nr - nr % 4\n"                   # the kernel's blocked loop starts here ...
-RESUME = "    for r in range(n4, nr):\n"               # ... and its single-row remainder here
+SPLIT = "    # -- the hidden layer's multiply-adds"    # the kernel's hidden-layer sums start here ...
+RESUME = "    # -- the hidden layer's tanh"             # ... and end here
 
 
-def kernel_parts() -> tuple[str, str]:
-    """The kernel's ``_mlp`` source before its blocked loop (from ``def``) and from its remainder loop on."""
+def kernel_parts() -> tuple[str, str, str]:
+    """The kernel's ``_mlp`` source (from ``def``) in three: before its hidden-layer sums, the sums, the rest."""
     source = inspect.getsource(_mlp.py_func)
-    if SPLIT not in source or RESUME not in source:
+    if SPLIT not in source or RESUME not in source or "hid[v] = tanh(hid[v])" not in source:
         raise RuntimeError("the kernel's _mlp changed shape: update benchmarks/mlp_blocking.py")
     source = source[source.index("def _mlp("):]
-    return source[:source.index(SPLIT)], source[source.index(RESUME):]
+    a, b = source.index(SPLIT), source.index(RESUME)
+    return source[:a], source[a:b], source[b:]
+
+
+def kernel_source(sums: bool = True, squash: str = "tanh(hid[v])") -> str:
+    """The kernel's ``_mlp``, without its hidden-layer sums unless ``sums``, with ``squash`` for the hidden tanh."""
+    head, middle, tail = kernel_parts()
+    return head + (middle if sums else "") + tail.replace("hid[v] = tanh(hid[v])", f"hid[v] = {squash}")
 
 
 def chain(acc: str, rows: int, weight) -> str:
@@ -51,12 +58,11 @@ def chain(acc: str, rows: int, weight) -> str:
     return acc
 
 
-def variant_source(rows: int, units: int, squash: str = "tanh(hid[v])") -> str:
-    """Source of ``_mlp`` with ``rows`` input rows by ``units`` hidden units per pass over the episodes; the rest
-    (bias, zero-row skip, remainder rows, output layer) is the kernel's own code."""
-    head, tail = kernel_parts()
-    if "hid[v] = tanh(hid[v])" not in tail:
-        raise RuntimeError("the kernel's _mlp changed shape: update benchmarks/mlp_blocking.py")
+def variant_source(rows: int, units: int) -> str:
+    """Source of ``_mlp`` whose hidden-layer sums take ``rows`` input rows by ``units`` hidden units per pass over
+    the episodes (loops that numba's vectoriser handles), then the remaining rows one by one; the rest (biases,
+    zero-row scan, tanh, output layer) is the kernel's own code."""
+    head, _, tail = kernel_parts()
     lines = [head.rstrip("\n"), f"    n4 = nr - nr % {rows}", f"    hb = hidden - hidden % {units}",
              f"    for r in range(0, n4, {rows}):"]
     for i in range(rows):
@@ -72,12 +78,16 @@ def variant_source(rows: int, units: int, squash: str = "tanh(hid[v])") -> str:
     lines += [f"            v{i} = genome[g{i} + U(u)]" for i in range(rows)]
     lines += ["            h = U(u * ep)", "            for e in range(ep):", "                x = U(e)",
               f"                hid[h + x] = {chain('hid[h + x]', rows, lambda i: f'v{i}')}"]
-    return "\n".join(lines) + "\n" + tail.replace("hid[v] = tanh(hid[v])", f"hid[v] = {squash}")
+    lines += ["    for r in range(n4, nr):", "        ok = U(rows[r] * ne + q0)", "        for u in range(hidden):",
+              "            w = genome[U(rows[r] * hidden + u)]", "            for e in range(ep):",
+              "                hid[U(u * ep + e)] += obs[ok + U(e)] * w"]
+    return "\n".join(lines) + "\n" + tail
 
 
 def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
-    namespace = {"U": np.uint64, "tanh": kmath.tanh}
+    namespace = {"U": np.uint64, "tanh": kmath.tanh, "hidden_tile": simd.hidden_tile, "UNITS": simd.UNITS,
+                 "EPISODES": simd.EPISODES}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
     return njit(**options)(namespace["_mlp"])
@@ -119,9 +129,10 @@ def main() -> None:
                    help="ROWSxUNITS per pass, comma-separated")
     a = p.parse_args()
     genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup))
-    no_tanh = variant_source(4, 2, "hid[v] * 0.5")
-    no_matmul = no_tanh.replace("range(0, n4, 4)", "range(0)").replace("range(n4, nr)", "range(0)")
-    mlps = {"kernel": _mlp, "no_tanh": compile_variant(no_tanh), "no_matmul_no_tanh": compile_variant(no_matmul)}
+    options = {k: v for k, v in FAST.items() if k != "cache"}
+    mlps = {"kernel": _mlp, "kernel_again": njit(**options)(_mlp.py_func),
+            "no_tanh": compile_variant(kernel_source(squash="hid[v] * 0.5")),
+            "no_matmul_no_tanh": compile_variant(kernel_source(sums=False, squash="hid[v] * 0.5"))}
     for v in a.variants.split(","):
         rows, units = (int(s) for s in v.split("x"))
         mlps[v] = compile_variant(variant_source(rows, units))

@@ -42,3 +42,27 @@ def act_libm(genome, obs, hidden, h_buf):
         z0 += t * genome[o_w2 + 2 * u]
         z1 += t * genome[o_w2 + 2 * u + 1]
     return math.tanh(z0), math.tanh(z1)
+
+
+@njit(**FAST)
+def act_plain(genomes, obs, hidden, out):
+    """The MLP as plain loops, with the kernel's tanh and its FMA contraction: genomes (N, G), obs (E, N, D) ->
+    out (E, N, 2). Every hidden unit adds all D inputs in index order, one multiply-add each."""
+    n_ep, n, d = obs.shape
+    o_b1 = d * hidden
+    o_w2 = o_b1 + hidden
+    o_b2 = o_w2 + 2 * hidden
+    for e in range(n_ep):
+        for i in range(n):
+            g = genomes[i]
+            z0 = g[o_b2]
+            z1 = g[o_b2 + 1]
+            for u in range(hidden):
+                h = g[o_b1 + u]
+                for k in range(d):
+                    h = h + obs[e, i, k] * g[k * hidden + u]
+                t = tanh(h)
+                z0 = z0 + t * g[o_w2 + 2 * u]
+                z1 = z1 + t * g[o_w2 + 2 * u + 1]
+            out[e, i, 0] = tanh(z0)
+            out[e, i, 1] = tanh(z1)

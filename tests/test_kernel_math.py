@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from kernel_helpers import atan2_array, tanh_array
+from kernel_helpers import act_plain, atan2_array, tanh_array
 
 from rovermarl import make_world
 from rovermarl.env import kernel
@@ -159,6 +159,22 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     a0, a1 = np.empty(n * e), np.empty(n * e)
     stages.act_flat(genomes, flat, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1)
     assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
+
+
+@pytest.mark.parametrize(("episodes", "hidden"), [(16, 16), (8, 16), (20, 6), (3, 5), (24, 4), (1, 1)])
+def test_register_tiles_sum_as_plain_loops(episodes, hidden):
+    """The hidden layer's register tiles (simd.hidden_tile: 4 units x 8 episodes) and the loops for what they leave
+    (other unit and episode counts) give the plain loops' numbers bit for bit, zero input rows skipped or not."""
+    rng = np.random.default_rng(episodes * 100 + hidden)
+    n, d = 3, 14
+    obs = rng.uniform(-1, 1, (episodes, n, d))
+    obs[:, :, [2, 7]] = 0.0                                    # rows zero in every episode: the kernel skips them
+    obs[: episodes // 2, 1, 5] = 0.0                           # zero in some episodes only: summed
+    genomes = rng.uniform(-2, 2, (n, (d + 3) * hidden + 2))
+    got, want = np.empty((episodes, n, 2)), np.empty((episodes, n, 2))
+    kernel.act(genomes, obs, hidden, got)
+    act_plain(genomes, obs, hidden, want)
+    assert same_bits(got, want)
 
 
 def test_poi_test_has_one_home():

@@ -4,13 +4,15 @@
 - :mod:`~rovermarl.env.kernel.rules`: one home per rule (POI within radius, sensor encoding, bearing, turn, speed);
 - :mod:`~rovermarl.env.kernel.stages`: :func:`sense`, :func:`act`, :func:`move` on batch-first arrays, and their
   flat loops;
+- :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's hidden layer (an LLVM-IR intrinsic);
 - :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), and the
   per-step reward readings :func:`fold` and :func:`settle`;
 - :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
 
 numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
-editing ``math.py``, ``rules.py``, ``stages.py`` or ``reward.py``, delete ``rovermarl/env/kernel/__pycache__`` (and
-``rovermarl/record/__pycache__``, whose event functions call :func:`poi_of`) so that their callers recompile.
+editing ``math.py``, ``rules.py``, ``simd.py``, ``stages.py`` or ``reward.py``, delete
+``rovermarl/env/kernel/__pycache__`` (and ``rovermarl/record/__pycache__``, whose event functions call
+:func:`poi_of`) so that their callers recompile.
 """
 
 from rovermarl.env.kernel.fused import rollout

@@ -23,6 +23,7 @@ from numba import njit
 
 from rovermarl.env.kernel.math import FAST, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
+from rovermarl.env.kernel.simd import EPISODES, UNITS, hidden_tile
 
 U = np.uint64
 
@@ -252,52 +253,22 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
         if nz:
             rows[nr] = k
             nr += 1
-    n4 = nr - nr % 4
-    for r in range(0, n4, 4):                     # four inputs per pass: a quarter of the loads/stores of hid
-        k0 = rows[r]
-        k1 = rows[r + 1]
-        k2 = rows[r + 2]
-        k3 = rows[r + 3]
-        o0 = U(k0 * ne + q0)
-        o1 = U(k1 * ne + q0)
-        o2 = U(k2 * ne + q0)
-        o3 = U(k3 * ne + q0)
-        for u in range(0, hidden - 1, 2):          # two hidden units per pass: twice the independent FMA chains
-            w0 = genome[U(k0 * hidden + u)]
-            w1 = genome[U(k1 * hidden + u)]
-            w2 = genome[U(k2 * hidden + u)]
-            w3 = genome[U(k3 * hidden + u)]
-            x0 = genome[U(k0 * hidden + u + 1)]
-            x1 = genome[U(k1 * hidden + u + 1)]
-            x2 = genome[U(k2 * hidden + u + 1)]
-            x3 = genome[U(k3 * hidden + u + 1)]
-            ou = U(u * ep)
-            ov = U((u + 1) * ep)
-            for e in range(ep):
-                i = U(e)
-                hid[ou + i] = (((hid[ou + i] + obs[o0 + i] * w0) + obs[o1 + i] * w1)
-                               + obs[o2 + i] * w2) + obs[o3 + i] * w3
-                hid[ov + i] = (((hid[ov + i] + obs[o0 + i] * x0) + obs[o1 + i] * x1)
-                               + obs[o2 + i] * x2) + obs[o3 + i] * x3
-        if hidden % 2 == 1:                            # odd H: the last unit alone
-            u = hidden - 1
-            w0 = genome[U(k0 * hidden + u)]
-            w1 = genome[U(k1 * hidden + u)]
-            w2 = genome[U(k2 * hidden + u)]
-            w3 = genome[U(k3 * hidden + u)]
-            ou = U(u * ep)
-            for e in range(ep):
-                i = U(e)
-                hid[ou + i] = (((hid[ou + i] + obs[o0 + i] * w0) + obs[o1 + i] * w1)
-                               + obs[o2 + i] * w2) + obs[o3 + i] * w3
-    for r in range(n4, nr):
-        k = rows[r]
-        ok = U(k * ne + q0)
-        for u in range(hidden):
-            w = genome[U(k * hidden + u)]
-            ou = U(u * ep)
-            for e in range(ep):
-                hid[ou + U(e)] += obs[ok + U(e)] * w
+    # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
+    hb = hidden - hidden % UNITS
+    eb = ep - ep % EPISODES
+    for u0 in range(0, hb, UNITS):
+        for e0 in range(0, eb, EPISODES):
+            hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0)
+    if hb < hidden or eb < ep:
+        for r in range(nr):
+            k = rows[r]
+            ok = U(k * ne + q0)
+            for u in range(hidden):
+                w = genome[U(k * hidden + u)]
+                ou = U(u * ep)
+                for e in range(eb if u < hb else 0, ep):
+                    hid[ou + U(e)] += obs[ok + U(e)] * w
+    # -- the hidden layer's tanh, the output layer --
     for v in range(hidden * ep):
         hid[v] = tanh(hid[v])
     b0 = genome[U(o_b2)]
