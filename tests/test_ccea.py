@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from rovermarl.algorithms import credit
+from rovermarl.config import compose_config
 from rovermarl.env import make_world
 from rovermarl.runner import Run
 from rovermarl.runner.chunk import advance, to_plain
@@ -160,3 +161,12 @@ def test_credits_equal_a_one_episode_at_a_time_reference(setup, reward):
     assert np.array_equal(credit.dpp(w, xy), _dpp_reference(w, xy))
     if reward == "final":                                                     # the cases D++ is for occur
         assert (credit.dpp(w, xy) != credit.difference(w, xy)).any()
+
+
+def test_ccea_mutates_by_a_gaussian_unless_told_otherwise():
+    """algorithm=ccea picks mutation=gaussian (every parameter perturbed); the command line's mutation wins, and
+    CC-(1+1)-ES keeps the paper's mixed operator."""
+    assert compose_config("algorithm=ccea").mutation.p_gaussian == 1.0
+    assert compose_config("algorithm=ccea", "mutation=mixed").mutation.p_gaussian == 0.2
+    assert compose_config("algorithm=ccea", "mutation.sigma=0.3").mutation.sigma == 0.3
+    assert compose_config().mutation.p_gaussian == 0.2
