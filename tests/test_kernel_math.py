@@ -175,6 +175,9 @@ def test_register_tiles_sum_as_plain_loops(episodes, hidden):
     kernel.act(genomes, obs, hidden, got)
     act_plain(genomes, obs, hidden, want)
     assert same_bits(got, want)
+    strided = np.repeat(genomes, 2, axis=1)[:, ::2]             # the same genomes, not contiguous: no tiles
+    kernel.act(strided, obs, hidden, got)
+    assert same_bits(got, want)
 
 
 def test_poi_test_has_one_home():

@@ -34,7 +34,8 @@ def hidden_tile(typingctx, hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e
     """Add the rows ``rows[:nr]`` of the hidden layer to the tile of units ``u0 .. u0+UNITS-1`` and episodes
     ``e0 .. e0+EPISODES-1``, in place: ``hid[u*ep + e] += obs[k*ne + q0 + e] * genome[k*hidden + u]`` for each row
     ``k`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) float64, rows (D,) int64; the tile must lie
-    inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and ``e0 + EPISODES <= ep``)."""
+    inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and ``e0 + EPISODES <= ep``), and every array must
+    be contiguous (the caller checks the genome's stride; the others are its own buffers)."""
     i64 = types.int64
     sig = types.void(hid, obs, genome, rows, i64, i64, i64, i64, i64, i64, i64)
 

@@ -254,7 +254,8 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
             rows[nr] = k
             nr += 1
     # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
-    hb = hidden - hidden % UNITS
+    tiles = genome.strides[0] == 8                    # the tiles read the genome as contiguous memory
+    hb = hidden - hidden % UNITS if tiles else 0
     eb = ep - ep % EPISODES
     for u0 in range(0, hb, UNITS):
         for e0 in range(0, eb, EPISODES):
