@@ -7,7 +7,7 @@ vector load of the row's episodes, one broadcast weight per unit and ``UNITS`` f
 
 Each (unit, episode) still adds its rows in index order, each as one fused multiply-add ``fma(x, w, h)``, which is
 what the FMA contraction of ``h + x * w`` (the kernel's ``FAST`` options) computes: the result is bit-identical to the
-plain loops (``tests/test_kernel.py``). LLVM splits the ``EPISODES``-wide vectors into the target's registers (one
+plain loops (``tests/test_kernel_math.py``). LLVM splits the ``EPISODES``-wide vectors into the target's registers (one
 512-bit register or two 256-bit ones per unit).
 """
 
