@@ -1,5 +1,6 @@
 """Single-core throughput of the default world: the fused rollout kernel against its frozen copy at commit 4c4ae3c
-(``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``, the full generation loop, and the plain numpy reference
+(``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``, the full generation loop (compiled, and CC11ES's Python loop:
+``compiled_over_python_loop``), and the plain numpy reference
 (``rovermarl.env.reference``). Prints one JSON line.
 
     python benchmarks/throughput.py [--setup solo] [--repeats 7] [--evals 3000] [--numpy-evals 150]
@@ -45,7 +46,7 @@ from rovermarl.config import compose_config
 from rovermarl.env import kernel, reference
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
-from rovermarl.runner.chunk import Run, to_plain
+from rovermarl.runner.chunk import Run, parts, to_plain
 
 
 def kernel_inputs(world, seed: int = 0):
@@ -158,12 +159,19 @@ def numpy_mismatches(world, teams: int) -> int:
     return bad
 
 
-def loop_rate(cfg: dict, n: int) -> float:
-    """Generations (= team evaluations) per second of the full loop: choose, mutate, evaluate, select, record."""
-    run = Run({**cfg, "generations": n}, seed=0)
-    t = time.process_time()
-    run.advance(n)
-    return n / (time.process_time() - t)
+def loop_rate(cfg: dict, n: int, loop: str = "auto") -> float:
+    """Generations (= team evaluations) per second of the full loop: choose, mutate, evaluate, select, record.
+    ``loop``: "auto" (the compiled loop, which the default config takes) or "python" (CC11ES's Python loop)."""
+    cfg = {**cfg, "generations": n}
+    algorithm = parts(cfg).algorithm
+    algorithm.loop = loop
+    try:
+        run = Run(cfg, seed=0)
+        t = time.process_time()
+        run.advance(n)
+        return n / (time.process_time() - t)
+    finally:
+        algorithm.loop = "auto"
 
 
 @njit(**FAST)
@@ -259,13 +267,15 @@ def main() -> None:
     new, old = rates["new"][:, 0], rates["old"][:, 0]
     evaluate_rate(world, 50)                                 # warm-up
     loop_rate(cfg, 50)
+    loop_rate(cfg, 50, "python")
     numpy_rate(world, 5)
     stages = stage_profile(world, reps=max(1, a.evals) * world.steps // 4, repeats=a.repeats)
-    evaluate, loop, numpy_ = [], [], []
+    evaluate, loop, py_loop, numpy_ = [], [], [], []
     for _ in range(a.repeats):                               # alternate so machine noise hits all alike
         evaluate.append(evaluate_rate(world, a.evals))
         numpy_.append(numpy_rate(world, a.numpy_evals))
         loop.append(loop_rate(cfg, a.evals))
+        py_loop.append(loop_rate(cfg, a.evals, "python"))
     med = statistics.median
     agent_steps = world.episodes * world.steps * world.n_rovers
     print(json.dumps({
@@ -290,6 +300,8 @@ def main() -> None:
         "evaluate_over_kernel": round(med(evaluate) / med(new), 3),
         "loop_team_evals_per_s": round(med(loop), 1),
         "loop_over_kernel": round(med(loop) / med(new), 3),
+        "python_loop_team_evals_per_s": round(med(py_loop), 1),
+        "compiled_over_python_loop": round(med(np.array(loop) / np.array(py_loop)), 3),
         **stages,
         "numpy_team_evals_per_s": round(med(numpy_), 1),
         "kernel_over_numpy": round(med(new) / med(numpy_), 2),
@@ -298,6 +310,7 @@ def main() -> None:
         "checked_teams": a.check_teams, "checked_episodes": a.check_teams * world.episodes,
         "agent_steps_per_team_eval": agent_steps,
         "evaluate_runs": [round(x, 1) for x in evaluate], "loop_runs": [round(x, 1) for x in loop],
+        "python_loop_runs": [round(x, 1) for x in py_loop],
         "numpy_runs": [round(x, 1) for x in numpy_],
         "loadavg_1m_start": round(load_start[0], 2), "loadavg_1m_end": round(os.getloadavg()[0], 2),
         "cpus": os.cpu_count(), "python": platform.python_version(),

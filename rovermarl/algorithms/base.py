@@ -89,6 +89,11 @@ class NullObserver:
     def evaluated(self, mutated: np.ndarray) -> int:
         return -1
 
+    def switch_inputs(self) -> None:
+        """Nothing to compare (see :meth:`BehaviourObserver.switch_inputs
+        <rovermarl.record.events.BehaviourObserver.switch_inputs>`)."""
+        return None
+
     def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
         pass
 

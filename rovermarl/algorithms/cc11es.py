@@ -16,6 +16,7 @@ import copy
 import numpy as np
 
 from rovermarl import errors
+from rovermarl.algorithms import compiled
 from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator, generator
 
 
@@ -28,6 +29,7 @@ class CC11ES(Algorithm):
     """
 
     fresh_ic = True
+    loop = "auto"      # "auto": the compiled loop where it applies (rovermarl.algorithms.compiled); "python": never
 
     def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0):
         super().__init__(world)
@@ -68,13 +70,10 @@ class CC11ES(Algorithm):
         return self.composition.genomes(state["parents"])
 
     def _advance(self, state, generation, n, evaluate, observer):
+        if self.loop == "auto" and compiled.supports(self, evaluate, observer):
+            return compiled.advance(self, state, generation, n, evaluate, observer)
         team, mutate, accept = self.composition, self.mutate, self.accept
-        selector = copy.deepcopy(self.selector)
-        selector.load_state_dict(state["selector"])
-        rng_mut, rng_sel = generator(state["rng_mut"]), generator(state["rng_sel"])
-        parents, f_parent = np.array(state["parents"], dtype=np.float64), float(state["score"])
-        h = {s.name: s.empty(n) for s in self.series}
-        score = np.empty(n)
+        selector, rng_mut, rng_sel, parents, f_parent, h = self._start(state, n)
         fresh = getattr(evaluate, "fresh", False)                             # evaluation.fresh_ic
         for t in range(n):
             g = generation + t
@@ -94,10 +93,24 @@ class CC11ES(Algorithm):
             if accepted:                                                      # 7. the observer logs the change
                 observer.accepted(g + 1, genomes, f_child, f_child != f_parent)
                 parents, f_parent = children, f_child
-            h["k"][t], h["accepted"][t], h["child_score"][t], score[t] = k, accepted, f_child, f_parent
-        state = {"parents": parents, "score": f_parent, "rng_mut": rng_mut.bit_generator.state,
-                 "rng_sel": rng_sel.bit_generator.state, "selector": selector.state_dict()}
-        return state, {"score": score, **h}
+            h["k"][t], h["accepted"][t], h["child_score"][t], h["score"][t] = k, accepted, f_child, f_parent
+        return self._state(parents, f_parent, rng_mut, rng_sel, selector), h
+
+    def _start(self, state, n):
+        """The loop's working objects from run ``state``: the selector (a copy, in its state), the generators
+        ``rng_mut`` and ``rng_sel``, the parents (M, P) and their score, and the arrays of ``n`` generations (the
+        score and the declared series)."""
+        selector = copy.deepcopy(self.selector)
+        selector.load_state_dict(state["selector"])
+        return (selector, generator(state["rng_mut"]), generator(state["rng_sel"]),
+                np.array(state["parents"], dtype=np.float64), float(state["score"]),
+                {"score": np.empty(n), **{s.name: s.empty(n) for s in self.series}})
+
+    @staticmethod
+    def _state(parents, score, rng_mut, rng_sel, selector) -> dict:
+        """The run state after a chunk (see the module doc)."""
+        return {"parents": parents, "score": score, "rng_mut": rng_mut.bit_generator.state,
+                "rng_sel": rng_sel.bit_generator.state, "selector": selector.state_dict()}
 
     def _check(self, k, selector) -> int:
         """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""

@@ -281,11 +281,16 @@ class World:
         """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
         return score(self.returns(genomes, ic, final_xy))
 
+    def kernel_args(self, ic: InitialConditions) -> tuple:
+        """The arguments of :func:`kernel.rollout <rovermarl.env.kernel.rollout>` before its outputs: the initial
+        conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then the world's arrays and
+        numbers, e.g. for a compiled loop that evaluates teams itself."""
+        return (*self._batch(*ic), self.poi_xy, self._type, self._coupling, self._value, self.steps, self.hidden,
+                float(self.sensor_range), float(self.obs_radius), float(self.v_max), self.w_max,
+                kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
+
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(genomes, xy0, h0, self.poi_xy, self._type, self._coupling, self._value,
-                       self.steps, self.hidden, float(self.sensor_range), float(self.obs_radius),
-                       float(self.v_max), self.w_max, kernel.SPEEDS.index(self.speed),
-                       kernel.REWARDS.index(self.reward), returns, traj_xy, traj_heading,
+        kernel.rollout(genomes, *self.kernel_args((xy0, h0)), returns, traj_xy, traj_heading,
                        _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
@@ -304,8 +309,9 @@ class World:
 
 
 def score(returns: np.ndarray) -> float:
-    """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead."""
-    return float(returns.sum()) / returns.shape[0]
+    """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead
+    (:func:`kernel.score <rovermarl.env.kernel.score>`)."""
+    return float(kernel.score(returns))
 
 
 def make_world(setup: str = "solo", **overrides) -> World:

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rovermarl.env.kernel import observers, poi_of
+from rovermarl.env.kernel import observers, poi_of, switched
 
 FILES = ("behaviour", "occupancy")   # the result files of :meth:`BehaviourObserver.drain`
 
@@ -72,7 +72,13 @@ class BehaviourObserver:
         under the parents; -1 if every rover was mutated or occupancy is off."""
         if not self.occupancy_on:
             return -1
-        return _switched(self.evaluation.final_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
+        return switched(self.evaluation.final_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
+
+    def switch_inputs(self) -> tuple | None:
+        """What :meth:`evaluated` compares, for a compiled loop that measures it itself
+        (:func:`kernel.switched <rovermarl.env.kernel.switched>`): ``(parent_poi (E, N), poi_xy, radius)``, or None
+        when nothing is measured."""
+        return (self.parent_poi, self.world.poi_xy, self._radius) if self.occupancy_on else None
 
     def start(self, genomes: np.ndarray, score: float) -> None:
         """Generation 0: the initial team (genomes (N, P)) was just evaluated."""
@@ -152,18 +158,3 @@ def _observed(final_xy, poi_xy, radius, out):
     for e in range(final_xy.shape[0]):
         for i in range(final_xy.shape[1]):
             out[e, i] = _poi(final_xy[e, i, 0], final_xy[e, i, 1], poi_xy, radius)
-
-
-@njit(cache=True)
-def _switched(child_xy, poi_xy, radius, parent_poi, mutated):
-    """Episodes e in which a rover i not ``mutated`` ends observing another POI than ``parent_poi[e, i]``;
-    -1 if every rover is mutated. child_xy (E, N, 2), parent_poi (E, N)."""
-    if mutated.all():
-        return -1
-    n = 0
-    for e in range(child_xy.shape[0]):
-        for i in range(child_xy.shape[1]):
-            if not mutated[i] and _poi(child_xy[e, i, 0], child_xy[e, i, 1], poi_xy, radius) != parent_poi[e, i]:
-                n += 1
-                break
-    return n

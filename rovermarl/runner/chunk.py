@@ -119,6 +119,11 @@ class Evaluation:
         self.calls += 1
         return self.world.evaluate(genomes, self.ic, self.final_xy)
 
+    def kernel_inputs(self) -> tuple:
+        """``(world, ic, final_xy)``: what a compiled generation loop needs to evaluate teams itself, as this does
+        (it adds its evaluations to :attr:`calls`)."""
+        return self.world, self.ic, self.final_xy
+
     def rollout(self, genomes: np.ndarray):
         """One team evaluation with its whole trajectories (:class:`~rovermarl.env.Rollout`: xy (E, T+1, N, 2),
         heading (E, T+1, N), returns (E,)): what a learner that credits rovers by counterfactuals needs."""

@@ -28,12 +28,24 @@ class MixedMutation:
 
     def __call__(self, genome: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """A mutated copy of ``genome`` (P,)."""
-        if rng.random() < self.p_gaussian:
-            return genome + rng.normal(0.0, self.sigma, genome.shape[0])
-        m = self.n_reset(genome.shape[0])
-        child = genome.copy()
-        _reset_distinct(child, rng.random(m), rng.uniform(self.low, self.high, m))
-        return child
+        return mixed(genome, rng, self.p_gaussian, self.sigma, self.n_reset(genome.shape[0]), self.low, self.high)
+
+
+@njit(cache=True)
+def mixed(genome, rng, p_gaussian, sigma, m, low, high):
+    """The mixed mutation of ``genome`` (P,) (a copy): with probability ``p_gaussian`` N(0, sigma^2) added to every
+    parameter, else ``m`` distinct parameters reset to U(low, high). ``rng`` is a numpy Generator (numba draws
+    the same numbers from it as numpy does), so the Python loop and the compiled one mutate alike.
+
+    >>> import numpy as np
+    >>> mixed(np.zeros(4), np.random.default_rng(0), 0.0, 0.1, 2, -2.0, 2.0).round(2).tolist()
+    [1.25, -1.93, 0.0, 0.0]
+    """
+    if rng.random() < p_gaussian:
+        return genome + rng.normal(0.0, sigma, genome.shape[0])
+    child = genome.copy()
+    _reset_distinct(child, rng.random(m), rng.uniform(low, high, m))
+    return child
 
 
 @njit(cache=True)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from numba import njit
+
 from rovermarl.errors import ConfigError
 
 
@@ -14,4 +16,14 @@ class Selection:
         self.strict = strict
 
     def __call__(self, f_child: float, f_parent: float) -> bool:
-        return f_child > f_parent if self.strict else f_child >= f_parent
+        return keeps(f_child, f_parent, self.strict)
+
+
+@njit(cache=True)
+def keeps(f_child, f_parent, strict):
+    """Whether the children are kept: ``f_child > f_parent`` if ``strict``, else ``f_child >= f_parent``.
+
+    >>> keeps(1.0, 1.0, False), keeps(1.0, 1.0, True)
+    (True, False)
+    """
+    return f_child > f_parent if strict else f_child >= f_parent

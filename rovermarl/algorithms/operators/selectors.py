@@ -7,9 +7,13 @@ A selector subclasses :class:`KSelector`: it sets ``arms`` (the k values it may 
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from rovermarl import errors
+from rovermarl.env.kernel import pairwise_sum
 
 
 class KSelector:
@@ -46,15 +50,11 @@ class KSelector:
     def reward(self, f_child: float, f_parent: float) -> float:
         """The bandit reward of a generation: 1 if the team improved, else 0 (``reward_rule="improved"``), or the
         normalised gain ``max(0, f_child - f_parent) / f_max`` (``"gain"``)."""
-        if self.reward_rule == "improved":
-            return 1.0 if f_child > f_parent else 0.0
-        return max(0.0, f_child - f_parent) / self.f_max
+        return bandit_reward(f_child, f_parent, self.reward_rule == "gain", self.f_max)
 
     def _draw(self, probs: np.ndarray, rng: np.random.Generator) -> int:
         """An arm drawn with probabilities ``probs`` (K,), from one uniform number."""
-        cdf = np.cumsum(probs)
-        a = int(np.searchsorted(cdf, rng.random() * cdf[-1], side="right"))
-        return self.arms[min(a, len(self.arms) - 1)]
+        return self.arms[draw_arm(probs, rng.random())]
 
     def _arms(self, arms) -> tuple[int, ...]:
         """Validated arm list; ``None`` means 1..N."""
@@ -104,18 +104,17 @@ class EXP3(KSelector):
         return self._probs
 
     def _compute_probs(self) -> np.ndarray:
-        w = np.exp(self.log_w - self.log_w.max())
-        return (1.0 - self.gamma) * w / w.sum() + self.gamma / len(self.arms)
+        out = np.empty(len(self.arms))
+        exp3_probs(self.log_w, self.gamma, out)
+        return out
 
     def choose(self, rng):
         return self._draw(self._probs, rng)
 
     def update(self, k, f_child, f_parent):
-        x = self.reward(f_child, f_parent)
-        a = self.arms.index(k)
-        self.log_w[a] += self.gamma * (x / self._probs[a]) / len(self.arms)
-        self.log_w -= self.log_w.max()
-        self._probs = self._compute_probs()
+        probs = np.empty(len(self.arms))
+        exp3_update(self.log_w, self._probs, self.arms.index(k), self.reward(f_child, f_parent), self.gamma, probs)
+        self._probs = probs
 
     def state_dict(self):
         return {"log_w": self.log_w.copy()}
@@ -256,3 +255,67 @@ class Schedule(KSelector):
 
     def load_state_dict(self, state):
         self.t = int(state["t"])
+
+
+# The numeric rules of the selectors that the compiled generation loop (rovermarl.algorithms.compiled) shares.
+@njit(cache=True)
+def bandit_reward(f_child, f_parent, gain, f_max):
+    """1.0 if ``f_child > f_parent`` else 0.0; with ``gain``, ``max(0, f_child - f_parent) / f_max``.
+
+    >>> bandit_reward(3.0, 2.0, False, 10.0), bandit_reward(3.0, 2.0, True, 10.0)
+    (1.0, 0.1)
+    """
+    if not gain:
+        return 1.0 if f_child > f_parent else 0.0
+    d = f_child - f_parent
+    return (d if d > 0.0 else 0.0) / f_max
+
+
+@njit(cache=True)
+def draw_arm(probs, u):
+    """The index of the arm drawn with probabilities ``probs`` (K,) by one uniform ``u`` in [0, 1): the first whose
+    cumulative probability exceeds ``u`` times the total (the last if none does).
+
+    >>> import numpy as np
+    >>> draw_arm(np.array([0.25, 0.25, 0.5]), 0.5)
+    2
+    """
+    k = probs.shape[0]
+    cdf = np.cumsum(probs)
+    x = u * cdf[k - 1]
+    for a in range(k):
+        if cdf[a] > x:
+            return a
+    return k - 1
+
+
+@njit(cache=True)
+def exp3_probs(log_w, gamma, out):
+    """EXP3's probabilities from log weights (K,) into ``out`` (K,): ``(1 - gamma) w / sum(w) + gamma / K`` with
+    ``w = exp(log_w - max(log_w))`` (libm's exp, the same in numba and numpy's scalar math).
+
+    >>> import numpy as np
+    >>> out = np.empty(2)
+    >>> exp3_probs(np.zeros(2), 0.1, out)
+    >>> out.tolist()
+    [0.5, 0.5]
+    """
+    k = log_w.shape[0]
+    top = log_w.max()
+    w = np.empty(k)
+    for a in range(k):
+        w[a] = math.exp(log_w[a] - top)
+    total = pairwise_sum(w)
+    for a in range(k):
+        out[a] = (1.0 - gamma) * w[a] / total + gamma / k
+
+
+@njit(cache=True)
+def exp3_update(log_w, probs, a, x, gamma, out):
+    """EXP3 after arm ``a`` with probabilities ``probs`` (K,) earned reward ``x``: ``log_w`` (K,) in place gains
+    ``gamma * (x / probs[a]) / K`` at ``a`` and is shifted to a maximum of 0; the new probabilities go to ``out``
+    (K; it may be ``probs``)."""
+    k = log_w.shape[0]
+    log_w[a] += gamma * (x / probs[a]) / k
+    log_w -= log_w.max()
+    exp3_probs(log_w, gamma, out)

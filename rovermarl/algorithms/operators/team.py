@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 
 class Team:
@@ -45,7 +46,7 @@ class HeterogeneousTeam(Team):
         return self.n_agents
 
     def pick(self, k, rng):
-        return rng.permutation(self.n_agents)[:k]
+        return pick_distinct(rng, self.n_agents, k)
 
     def genomes(self, parents):
         return parents
@@ -70,3 +71,15 @@ class HomogeneousTeam(Team):
 
     def mutated(self, chosen):
         return np.ones(self.n_agents, dtype=bool)
+
+
+@njit(cache=True)
+def pick_distinct(rng, n, k):
+    """``k`` distinct indices of 0..n-1, uniformly: the first k of a permutation drawn from the numpy Generator
+    ``rng`` (the same draws in numba as in numpy).
+
+    >>> import numpy as np
+    >>> pick_distinct(np.random.default_rng(0), 4, 2).tolist()
+    [2, 0]
+    """
+    return rng.permutation(n)[:k]

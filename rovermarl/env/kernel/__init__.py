@@ -5,8 +5,9 @@
 - :mod:`~rovermarl.env.kernel.stages`: :func:`sense`, :func:`act`, :func:`move` on batch-first arrays, and their
   flat loops;
 - :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's hidden layer (an LLVM-IR intrinsic);
-- :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), and the
-  per-step reward readings :func:`fold` and :func:`settle`;
+- :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), the
+  per-step reward readings :func:`fold` and :func:`settle`, the score :func:`score` (numpy's summation order)
+  and the phenotypic coupling measure :func:`switched`;
 - :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
 
 numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
@@ -17,10 +18,10 @@ editing ``math.py``, ``rules.py``, ``simd.py``, ``stages.py`` or ``reward.py``, 
 
 from rovermarl.env.kernel.fused import rollout
 from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
-from rovermarl.env.kernel.reward import fold, observers, payout, reward, settle
+from rovermarl.env.kernel.reward import fold, observers, pairwise_sum, payout, reward, score, settle, switched
 from rovermarl.env.kernel.rules import POI_TYPES, REWARDS, SPEEDS, bearing, poi_of, reading, speed, turn, within
 from rovermarl.env.kernel.stages import act, move, sense, sense_libm
 
-__all__ = ["POI_TYPES", "REWARDS", "SPEEDS", "act", "atan2", "bearing", "fold", "move", "observers", "payout",
-           "poi_of", "reading", "reward", "rollout", "sense", "sense_libm", "settle", "sincos", "sincos_all", "speed",
-           "tanh", "turn", "within", "wrap"]
+__all__ = ["POI_TYPES", "REWARDS", "SPEEDS", "act", "atan2", "bearing", "fold", "move", "observers", "pairwise_sum",
+           "payout", "poi_of", "reading", "reward", "rollout", "score", "sense", "sense_libm", "settle", "sincos",
+           "sincos_all", "speed", "switched", "tanh", "turn", "within", "wrap"]

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rovermarl.env.kernel.rules import ANY_STEP, BEST_STEP, within
+from rovermarl.env.kernel.rules import ANY_STEP, BEST_STEP, poi_of, within
 
 
 @njit(inline="always", cache=True)
@@ -113,3 +113,91 @@ def settle(mode, steps, coupling, value, peak, acc, out):
         out[:] = acc
     else:
         out[:] = acc / steps
+
+
+@njit(cache=True)
+def _block_sum(a, lo, n):
+    """numpy's sum of a block of ``n <= 128`` terms ``a[lo:lo + n]``: plain below 8 terms, else 8 running sums."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += a[i]
+        return res
+    r = a[lo:lo + 8].copy()
+    i = 8
+    while i < n - n % 8:
+        for j in range(8):
+            r[j] += a[lo + i + j]
+        i += 8
+    res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]))
+    for rest in range(i, n):
+        res += a[lo + rest]
+    return res
+
+
+@njit(cache=True)
+def pairwise_sum(a):
+    """``a.sum()`` of a (E,) with numpy's summation order, so it is the same float: blocks of up to 128 terms
+    (:func:`_block_sum`), larger ranges split in halves (multiples of 8) and their sums added (numpy recurses; an
+    explicit stack here, as numba's cache cannot hold a recursive function).
+
+    >>> import numpy as np
+    >>> a = np.random.default_rng(0).standard_normal(300)
+    >>> pairwise_sum(a) == a.sum()
+    True
+    """
+    lo, size, stage = np.zeros(64, np.int64), np.zeros(64, np.int64), np.zeros(64, np.int64)
+    values = np.empty(64)
+    top, nv = 0, 0
+    size[0] = a.shape[0]
+    while top >= 0:
+        n = size[top]
+        half = n // 2 - (n // 2) % 8
+        if n <= 128:                                  # a leaf: its sum
+            values[nv] = _block_sum(a, lo[top], n)
+            nv += 1
+            top -= 1
+        elif stage[top] < 2:                          # descend into the left half, then the right one
+            off = lo[top] + half * stage[top]
+            stage[top] += 1
+            top += 1
+            lo[top], size[top], stage[top] = off, half if stage[top - 1] == 1 else n - half, 0
+        else:                                         # both halves done: left + right
+            nv -= 1
+            values[nv - 1] += values[nv]
+            top -= 1
+    return values[0]
+
+
+@njit(cache=True)
+def score(returns):
+    """The team score F (SPEC section 5): the mean of per-episode returns (E,), as ``returns.sum() / E`` in numpy.
+
+    >>> import numpy as np
+    >>> score(np.array([3.0, 4.0, 2.0]))
+    3.0
+    """
+    return pairwise_sum(returns) / returns.shape[0]
+
+
+@njit(cache=True)
+def switched(child_xy, poi_xy, radius, parent_poi, mutated):
+    """The phenotypic coupling of one generation (the paper's Section 5.3): episodes in which a rover not
+    ``mutated`` (N,) bool ends observing another POI (:func:`~rovermarl.env.kernel.rules.poi_of`, -1 for none) at
+    ``child_xy`` (E, N, 2) than ``parent_poi`` (E, N) says it did under the parents; -1 if every rover is mutated or
+    nothing is measured (``parent_poi`` with a zero-sized first axis).
+
+    >>> import numpy as np
+    >>> switched(np.array([[[13.0, 0.0], [0.0, 0.0]]]), np.array([[13.0, 0.0]]), 2.0, np.array([[-1, -1]]),
+    ...          np.array([False, True]))
+    1
+    """
+    if parent_poi.shape[0] == 0 or mutated.all():
+        return -1
+    n = 0
+    for e in range(child_xy.shape[0]):
+        for i in range(child_xy.shape[1]):
+            if not mutated[i] and poi_of(child_xy[e, i, 0], child_xy[e, i, 1], poi_xy, radius) != parent_poi[e, i]:
+                n += 1
+                break
+    return n

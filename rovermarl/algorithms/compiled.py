@@ -1,0 +1,119 @@
+"""CC-(1+1)-ES's generation loop compiled (numba) for its common operators, bit-identical to the Python loop of
+:mod:`rovermarl.algorithms.cc11es`, which stays for every other plug-in.
+
+The common case: k fixed or EXP3 (``k=1..N``, ``k=adaptive``), the mixed mutation, soft or strict selection, a
+heterogeneous or homogeneous team, scored in this process on the run's initial conditions (not fresh ones, not IC
+shards), with the runner's behaviour observer or none. :func:`supports` says whether a run is in it; the choice is
+automatic.
+
+Both loops run the same rules: the compiled one calls the operators' own numba functions (``draw_arm``,
+``exp3_update``, ``bandit_reward``, ``pick_distinct``, ``mixed``, ``keeps``), the world's kernel and its
+:func:`~rovermarl.env.kernel.score`, and numba draws the same numbers from a numpy ``Generator`` as numpy does.
+Accepted generations are rare (about 1 in 150 in the paper's runs), so the compiled call stops after each one and
+Python tells the observer (trajectories, occupancy), then calls again.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
+from rovermarl.algorithms.operators.selection import Selection, keeps
+from rovermarl.algorithms.operators.selectors import EXP3, FixedK, bandit_reward, draw_arm, exp3_update
+from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam, pick_distinct
+from rovermarl.env.kernel import rollout, score, switched
+
+_NO_FINAL = np.empty((0, 1, 2))
+_NO_POI, _NO_PROBS = np.empty((0, 1), dtype=np.int16), np.empty((0, 1))
+
+
+def supports(algo, evaluate, observer) -> bool:
+    """Whether the compiled loop runs CC11ES ``algo`` with this evaluation and observer: exactly the common
+    operators (subclasses may change any rule, so they take the Python loop), a local evaluation on fixed initial
+    conditions (``evaluate.kernel_inputs``) and an observer that says what it measures (``observer.switch_inputs``)."""
+    return (type(algo.selector) in (FixedK, EXP3) and type(algo.mutate) is MixedMutation
+            and type(algo.accept) is Selection and type(algo.composition) in (HeterogeneousTeam, HomogeneousTeam)
+            and not getattr(evaluate, "fresh", False) and callable(getattr(evaluate, "kernel_inputs", None))
+            and callable(getattr(observer, "switch_inputs", None)))
+
+
+def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> tuple[dict, dict]:
+    """:meth:`CC11ES._advance <rovermarl.algorithms.cc11es.CC11ES._advance>` in compiled chunks: the same state
+    and arrays, bit for bit."""
+    team, mut = algo.composition, algo.mutate
+    selector, rng_mut, rng_sel, parents, f_parent, h = algo._start(state, n)
+    exp3 = isinstance(selector, EXP3)
+    arms = np.array(selector.arms, dtype=np.int64)
+    log_w, probs = (selector.log_w, selector.probs.copy()) if exp3 else (np.zeros(1), np.ones(1))
+    world, ic, final_xy = evaluate.kernel_inputs()
+    args = world.kernel_args(ic)
+    final = _NO_FINAL if final_xy is None else final_xy
+    t = 0
+    while t < n:
+        probe = observer.switch_inputs()                         # (parent_poi, poi_xy, radius) or None
+        parent_poi, poi_xy, radius = probe if probe is not None else (_NO_POI, world.poi_xy, 0.0)
+        f_before = f_parent
+        t, f_parent = _generations(
+            t, n, parents, f_parent, team.n_agents, isinstance(team, HomogeneousTeam),
+            rng_mut, rng_sel, 0 if exp3 else selector.value, arms, getattr(selector, "gamma", 0.0),
+            selector.reward_rule == "gain", selector.f_max, log_w, probs,
+            mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]), mut.low, mut.high, algo.accept.strict,
+            args, final, parent_poi, poi_xy, radius,
+            h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", _NO_PROBS))
+        if t > 0 and h["accepted"][t - 1]:                   # the generation that stopped the call kept its team
+            observer.accepted(generation + t, team.genomes(parents.copy()), f_parent, f_parent != f_before)
+    evaluate.calls += n
+    if exp3:
+        selector.load_state_dict({"log_w": log_w})                  # its probabilities: the same function's
+    return algo._state(parents, f_parent, rng_mut, rng_sel, selector), h
+
+
+@njit(cache=True)
+def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_sel, fixed_k, arms,
+                 gamma, gain, f_max, log_w, probs, p_gaussian, sigma, m, low, high, strict, world, final_xy,
+                 parent_poi, poi_xy, radius, out_score, out_k, out_accepted, out_switched, out_child, out_probs):
+    """Generations t..n-1 of a chunk, up to and including the first that keeps its children; returns the next t
+    and the parents' score. ``parents`` (M, P) and EXP3's ``log_w``, ``probs`` (K,) change in place; the
+    generation's k, acceptance, switched count (-1: not measured), child score and score go to ``out_*`` (n,),
+    EXP3's probabilities before its choice to ``out_probs`` (n, K). ``world`` is ``World.kernel_args(ic)``."""
+    xy0, h0 = world[0], world[1]
+    returns = np.empty(h0.shape[0])
+    team = np.empty((n_rovers, parents.shape[1]))
+    children = np.empty_like(parents)
+    mutated = np.empty(n_rovers, dtype=np.bool_)
+    no_xy, no_heading = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1))                 # no trajectories
+    while t < n:
+        if fixed_k > 0:                                                   # 1. choose k
+            k = fixed_k
+        else:
+            out_probs[t] = probs
+            k = arms[draw_arm(probs, rng_sel.random())]
+        chosen = np.zeros(1, np.int64) if homogeneous else pick_distinct(rng_mut, n_rovers, k)   # 2. k rovers
+        children[:] = parents
+        for i in chosen:                                                  # 3. mutate them
+            children[i] = mixed(parents[i], rng_mut, p_gaussian, sigma, m, low, high)
+        for r in range(n_rovers):                                         #    the team the world sees
+            team[r] = children[0] if homogeneous else children[r]
+        rollout(team, xy0, h0, world[2], world[3], world[4], world[5], world[6], world[7], world[8], world[9],
+                world[10], world[11], world[12], world[13], returns, no_xy, no_heading, final_xy)
+        f_child = score(returns)                                          # 4. evaluate the team
+        mutated[:] = homogeneous
+        mutated[chosen] = True
+        out_switched[t] = switched(final_xy, poi_xy, radius, parent_poi, mutated)
+        accepted = keeps(f_child, f_parent, strict)                       # 5. all k children or none
+        if fixed_k == 0:                                                  # 6. reward the selector
+            a = 0
+            for j in range(arms.shape[0]):
+                if arms[j] == k:
+                    a = j
+            exp3_update(log_w, probs, a, bandit_reward(f_child, f_parent, gain, f_max), gamma, probs)
+        if accepted:
+            parents[:] = children
+            f_parent = f_child
+        out_k[t], out_accepted[t], out_child[t], out_score[t] = k, accepted, f_child, f_parent
+        t += 1
+        if accepted:                                                      # 7. Python tells the observer
+            return t, f_parent
+    return t, f_parent
+

@@ -1,0 +1,122 @@
+"""The compiled generation loop (rovermarl.algorithms.compiled) against the Python loop of CC11ES: same arrays,
+events, states and evaluation counts, bit for bit; chosen only where it applies."""
+
+import numpy as np
+import pytest
+
+from rovermarl.algorithms import NullObserver, compiled
+from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
+from rovermarl.algorithms.operators.selectors import EXP3
+from rovermarl.algorithms.operators.team import pick_distinct
+from rovermarl.env.kernel import pairwise_sum, score
+from rovermarl.runner.chunk import Run, parts, to_plain
+from tests.conftest import make_cfg
+
+
+def _run(overrides, loop, monkeypatch, seed=1, chunks=(700, 500)):
+    """Chunks of a run with the loop forced to ``loop``; returns (arrays, events, state, evaluations, compiled
+    calls)."""
+    cfg = to_plain(make_cfg(*overrides, "generations=1200"))
+    calls = []
+    real = compiled._generations
+    monkeypatch.setattr(compiled, "_generations", lambda *a: calls.append(1) or real(*a))
+    monkeypatch.setattr(parts(cfg).algorithm, "loop", loop)
+    run = Run(cfg, seed)
+    arrays = [run.advance(n) for n in chunks]
+    resumed = Run(cfg, seed, state=run.state())                   # a chunk after a resume, too
+    arrays.append(resumed.advance(300))
+    return arrays, [run.observer.drain(), resumed.observer.drain()], resumed.state(), run.evaluate.calls, len(calls)
+
+
+def _assert_same(a, b, path="run"):
+    if isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        for key in a:
+            _assert_same(a[key], b[key], f"{path}.{key}")
+    elif isinstance(a, (list, tuple)):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same(x, y, f"{path}[{i}]")
+    elif isinstance(a, np.ndarray):
+        assert a.dtype == b.dtype, path
+        np.testing.assert_array_equal(a, b, err_msg=path)
+    else:
+        assert a == b, path
+
+
+@pytest.mark.parametrize("overrides", [
+    ["k=1"], ["k=adaptive", "setup=duo"], ["k=4"], ["team=homogeneous"],
+    ["k=2", "selection=strict", "record.occupancy=false"],
+    ["k=adaptive", "k.reward=gain", "k.arms=[1,3]", "mutation.p_gaussian=0.5"],
+    ["k=3", "env.reward=any_step", "env.speed=clip", "env.episodes=9"],
+])
+def test_compiled_loop_gives_the_python_loops_run(overrides, monkeypatch):
+    py = _run(overrides, "python", monkeypatch)
+    jit = _run(overrides, "auto", monkeypatch)
+    assert py[4] == 0 and jit[4] > 1                             # each loop ran as forced
+    assert jit[0][0]["accepted"].any()                           # accepted generations crossed compiled calls
+    _assert_same(py[:4], jit[:4])
+
+
+class MyEXP3(EXP3):
+    """A user's variant of EXP3: its rules may differ, so it takes the Python loop."""
+
+
+class MyMutation(MixedMutation):
+    """A user's mutation built on the mixed one."""
+
+
+@pytest.mark.parametrize("overrides, target, plain_evaluate, observer, expected", [
+    (["k=adaptive"], None, False, None, True),
+    (["k=2", "team=homogeneous", "selection=strict"], None, False, NullObserver(), True),
+    (["k=ucb1"], None, False, None, False),
+    (["k=1", "evaluation.fresh_ic=true"], None, False, None, False),
+    (["k=1"], None, True, None, False),                          # an evaluation without kernel_inputs (IC shards)
+    (["k=1"], None, False, object(), False),                     # an observer without switch_inputs
+    (["k=2"], ("mutation", "MyMutation"), False, None, False),
+    (["k=adaptive"], ("k", "MyEXP3"), False, None, False),
+])
+def test_compiled_loop_only_where_it_applies(overrides, target, plain_evaluate, observer, expected):
+    cfg = make_cfg(*overrides, "generations=10")
+    if target:
+        cfg[target[0]]._target_ = f"{__name__}.{target[1]}"
+    run = Run(to_plain(cfg), 0)
+    evaluate = (lambda genomes: run.evaluate(genomes)) if plain_evaluate else run.evaluate
+    assert compiled.supports(run.parts.algorithm, evaluate, observer or run.observer) is expected
+
+
+def test_numba_draws_what_numpy_draws():
+    """The operators' numba functions take the same numbers from a numpy Generator as numpy's own calls."""
+    for seed in range(5):
+        a, b = np.random.default_rng(seed), np.random.default_rng(seed)
+        for _ in range(200):
+            np.testing.assert_array_equal(pick_distinct(a, 4, 3), b.permutation(4)[:3])
+            genome = np.linspace(-1, 1, 658)
+            got = mixed(genome, a, 0.5, 0.1, 164, -2.0, 2.0)
+            if b.random() < 0.5:
+                want = genome + b.normal(0.0, 0.1, 658)
+            else:
+                u, values = b.random(164), b.uniform(-2.0, 2.0, 164)
+                want = genome.copy()
+                perm = np.arange(658)
+                for i in range(164):
+                    j = min(i + int(u[i] * (658 - i)), 657)
+                    perm[i], perm[j] = perm[j], perm[i]
+                    want[perm[i]] = values[i]
+            np.testing.assert_array_equal(got, want)
+        assert a.bit_generator.state == b.bit_generator.state
+
+
+@pytest.mark.parametrize("n", [*range(1, 40), 127, 128, 129, 136, 255, 256, 1000, 4097])
+def test_score_sums_in_numpys_order(n):
+    rng = np.random.default_rng(n)
+    for _ in range(20):
+        a = rng.standard_normal(n) * 10.0 ** rng.uniform(-8, 8, n)      # spread magnitudes: the order shows
+        assert pairwise_sum(a) == a.sum()
+        assert score(a) == float(a.sum()) / n
+
+
+def test_numpys_sum_order_is_not_the_plain_one():
+    """What the test above tells apart: a plain left-to-right sum differs from numpy's."""
+    a = np.random.default_rng(0).standard_normal((50, 37)) * 10.0 ** np.random.default_rng(1).uniform(-8, 8, (50, 37))
+    assert any(pairwise_sum(row) != np.cumsum(row)[-1] for row in a)
