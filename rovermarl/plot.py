@@ -17,8 +17,6 @@ from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
-from rovermarl.analysis.draw import FORMATS
-from rovermarl.analysis.figures import plot_sweep
 from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.sweep import SweepError
 
@@ -45,6 +43,8 @@ def _threshold(text: str) -> tuple[str, float]:
 
 
 def parser() -> argparse.ArgumentParser:
+    from rovermarl.analysis.draw import FORMATS  # matplotlib: imported when figures are drawn, not before
+
     p = _Parser(prog=PROG, description="Draw the paper's figures (PNG/PDF) from a sweep dir or one job dir.")
     p.add_argument("path", type=Path, help="sweep dir (from `rovermarl.train -m`) or one job dir")
     p.add_argument("--out", type=Path, default=None, help="output dir (default: PATH/figures)")
@@ -69,6 +69,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.update_gen is not None and args.update_run is None:
         parser().error("--update-gen needs --update-run")
     logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
+    from rovermarl.analysis.figures import plot_sweep
     try:
         index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
                            args.update_gen, log=log, xscale=args.xscale, x=args.x)
@@ -85,17 +86,22 @@ class PlotCallback(Callback):
 
     Register it in ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``.
     Plotting problems are logged as a warning and never raised, so a finished sweep is never marked failed.
+    ``formats`` None: :data:`rovermarl.analysis.draw.FORMATS`. matplotlib is imported when the sweep ends, so
+    every job's start-up is spared it.
     """
 
-    def __init__(self, formats: Sequence[str] = FORMATS, thresholds: dict | None = None) -> None:
-        self.formats = list(formats)
+    def __init__(self, formats: Sequence[str] | None = None, thresholds: dict | None = None) -> None:
+        self.formats = None if formats is None else list(formats)
         self.thresholds = dict(thresholds or {})
 
     def on_multirun_end(self, config, **kwargs) -> None:
         sweep = "?"
         try:
+            from rovermarl.analysis.draw import FORMATS
+            from rovermarl.analysis.figures import plot_sweep
+
             sweep = Path(str(config.hydra.sweep.dir))
-            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats)
+            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats or list(FORMATS))
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
             log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, e)
