@@ -94,7 +94,8 @@ def compile_variant(source: str):
 
 
 def team_loop(mlp):
-    """A compiled loop of ``reps`` calls of ``mlp`` for every rover of a team: the act stage of one step."""
+    """A compiled loop of ``reps`` calls of ``mlp`` for every rover of a team, then the output tanh of all of them
+    (as ``act_flat`` does): the act stage of one step."""
     @njit(**{k: v for k, v in FAST.items() if k != "cache"})
     def loop(genomes, obs, n_ep, hidden, reps, hid, rows, a0, a1):
         ne = a0.shape[0]
@@ -102,6 +103,10 @@ def team_loop(mlp):
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
                 mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+            for q in range(ne):
+                a0[q] = kmath.tanh(a0[q])
+            for q in range(ne):
+                a1[q] = kmath.tanh(a1[q])
     return loop
 
 

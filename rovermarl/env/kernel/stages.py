@@ -211,6 +211,12 @@ def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
         _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+    # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
+    # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
+    for q in range(ne):
+        a0[q] = tanh(a0[q])
+    for q in range(ne):
+        a1[q] = tanh(a1[q])
 
 
 @njit(inline="always", **FAST)
@@ -231,7 +237,8 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
     """MLP of one rover over its E episodes.
 
     genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``; hid (H*E,) scratch ->
-    out0, out1 (E,) = the two tanh outputs; rows (D,) int scratch. Inputs are summed in index order.
+    out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch.
+    Inputs are summed in index order.
     """
     d = obs.shape[0] // ne
     ep = out0.shape[0]
@@ -284,6 +291,3 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
         for e in range(ep):
             out0[e] += hid[ou + U(e)] * w0
             out1[e] += hid[ou + U(e)] * w1
-    for e in range(ep):
-        out0[e] = tanh(out0[e])
-        out1[e] = tanh(out1[e])
