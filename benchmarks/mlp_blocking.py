@@ -11,7 +11,8 @@ the best of ``--repeats``; ``over_kernel`` the median of the per-repeat speed ra
 kernel). ``kernel_again`` is the kernel's own code compiled again: an A/A control for code placement and noise.
 ``no_tanh`` is the kernel with its hidden tanh replaced by a multiply, ``no_matmul_no_tanh`` also without the
 hidden layer's multiply-adds (wrong results, ``equal`` false): ``act_parts_ns`` splits the act stage into the hidden
-layer's multiply-adds, its tanh and the rest (biases, the zero-row scan, the output layer and its tanh).
+layer's multiply-adds, its tanh and the rest (biases, the zero-row scan, the output layer, also in register tiles,
+and its tanh).
 """
 
 from __future__ import annotations
@@ -86,7 +87,8 @@ def variant_source(rows: int, units: int) -> str:
 
 def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
-    namespace = {"U": np.uint64, "tanh": kmath.tanh, "hidden_tile": simd.hidden_tile, "UNITS": simd.UNITS,
+    namespace = {"U": np.uint64, "tanh": kmath.tanh, "hidden_tile": simd.hidden_tile,
+                 "output_tile": simd.output_tile, "UNITS": simd.UNITS,
                  "EPISODES": simd.EPISODES}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
@@ -100,9 +102,10 @@ def team_loop(mlp):
     def loop(genomes, obs, n_ep, hidden, reps, hid, rows, a0, a1):
         ne = a0.shape[0]
         for _ in range(reps):
+            pre, units = np.empty(2 * n_ep), np.arange(hidden)
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
-                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
             for q in range(ne):
                 a0[q] = kmath.tanh(a0[q])
             for q in range(ne):

@@ -163,8 +163,9 @@ def test_sense_and_act_give_the_fused_loops_numbers():
 
 @pytest.mark.parametrize(("episodes", "hidden"), [(16, 16), (8, 16), (20, 6), (3, 5), (24, 4), (1, 1)])
 def test_register_tiles_sum_as_plain_loops(episodes, hidden):
-    """The hidden layer's register tiles (simd.hidden_tile: 4 units x 8 episodes) and the loops for what they leave
-    (other unit and episode counts) give the plain loops' numbers bit for bit, zero input rows skipped or not."""
+    """The register tiles (simd.hidden_tile: 4 units x 8 episodes; simd.output_tile: 2 outputs x 8 episodes) and
+    the loops for what they leave (other unit and episode counts) give the plain loops' numbers bit for bit, zero
+    input rows skipped or not."""
     rng = np.random.default_rng(episodes * 100 + hidden)
     n, d = 3, 14
     obs = rng.uniform(-1, 1, (episodes, n, d))

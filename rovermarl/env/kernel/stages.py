@@ -23,7 +23,7 @@ from numba import njit
 
 from rovermarl.env.kernel.math import FAST, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
-from rovermarl.env.kernel.simd import EPISODES, UNITS, hidden_tile
+from rovermarl.env.kernel.simd import EPISODES, UNITS, hidden_tile, output_tile
 
 U = np.uint64
 
@@ -208,9 +208,10 @@ def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
     hid (H*E,) and rows (D,) int64 are scratch."""
     ne = a0.shape[0]
+    pre, units = np.empty(2 * n_ep), np.arange(hidden)                  # the output tiles' scratch and rows
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
-        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
     # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
     # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
     for q in range(ne):
@@ -233,12 +234,12 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 
 @njit(**FAST)
-def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
+def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
     """MLP of one rover over its E episodes.
 
     genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``; hid (H*E,) scratch ->
-    out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch.
-    Inputs are summed in index order.
+    out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch,
+    pre (2*E,) scratch, units (H,) = 0..H-1. Inputs are summed in index order.
     """
     d = obs.shape[0] // ne
     ep = out0.shape[0]
@@ -260,10 +261,10 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
         if nz:
             rows[nr] = k
             nr += 1
-    # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
     tiles = genome.strides[0] == 8                    # the tiles read the genome as contiguous memory
-    hb = hidden - hidden % UNITS if tiles else 0
     eb = ep - ep % EPISODES
+    # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
+    hb = hidden - hidden % UNITS if tiles else 0
     for u0 in range(0, hb, UNITS):
         for e0 in range(0, eb, EPISODES):
             hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0)
@@ -282,12 +283,18 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, out0, out1):
     b0 = genome[U(o_b2)]
     b1 = genome[U(o_b2 + 1)]
     for e in range(ep):
-        out0[e] = b0
-        out1[e] = b1
+        pre[U(e)] = b0
+        pre[U(ep + e)] = b1
+    ob = eb if tiles else 0
+    for e0 in range(0, ob, EPISODES):                 # register tiles (simd.output_tile), then the rest
+        output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0)
     for u in range(hidden):
         w0 = genome[U(o_w2 + 2 * u)]
         w1 = genome[U(o_w2 + 2 * u + 1)]
         ou = U(u * ep)
-        for e in range(ep):
-            out0[e] += hid[ou + U(e)] * w0
-            out1[e] += hid[ou + U(e)] * w1
+        for e in range(ob, ep):
+            pre[U(e)] += hid[ou + U(e)] * w0
+            pre[U(ep + e)] += hid[ou + U(e)] * w1
+    for e in range(ep):
+        out0[e] = pre[U(e)]
+        out1[e] = pre[U(ep + e)]
