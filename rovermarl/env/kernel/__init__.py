@@ -13,7 +13,8 @@
 numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
 editing ``math.py``, ``rules.py``, ``simd.py``, ``stages.py`` or ``reward.py``, delete
 ``rovermarl/env/kernel/__pycache__`` (and ``rovermarl/record/__pycache__``, whose event functions call
-:func:`poi_of`) so that their callers recompile.
+:func:`poi_of`, and ``rovermarl/algorithms/__pycache__``, whose compiled generation loop and operators embed the
+kernel and :func:`pairwise_sum`) so that their callers recompile.
 """
 
 from rovermarl.env.kernel.fused import rollout
