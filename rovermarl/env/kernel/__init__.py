@@ -4,6 +4,7 @@
 - :mod:`~rovermarl.env.kernel.rules`: one home per rule (POI within radius, sensor encoding, bearing, turn, speed);
 - :mod:`~rovermarl.env.kernel.stages`: :func:`sense`, :func:`act`, :func:`move` on batch-first arrays, and their
   flat loops;
+- :mod:`~rovermarl.env.kernel.target`: 512-bit vectors on CPUs with AVX-512 (numba's target features, set at import);
 - :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's hidden layer (an LLVM-IR intrinsic);
 - :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), the
   per-step reward readings :func:`fold` and :func:`settle`, the score :func:`score` (numpy's summation order)
@@ -17,6 +18,7 @@ editing ``math.py``, ``rules.py``, ``simd.py``, ``stages.py`` or ``reward.py``, 
 kernel and :func:`pairwise_sum`) so that their callers recompile.
 """
 
+from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)
 from rovermarl.env.kernel.fused import rollout
 from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
 from rovermarl.env.kernel.reward import fold, observers, pairwise_sum, payout, reward, score, settle, switched
@@ -25,4 +27,4 @@ from rovermarl.env.kernel.stages import act, move, sense, sense_libm
 
 __all__ = ["POI_TYPES", "REWARDS", "SPEEDS", "act", "atan2", "bearing", "fold", "move", "observers", "pairwise_sum",
            "payout", "poi_of", "reading", "reward", "rollout", "score", "sense", "sense_libm", "settle", "sincos",
-           "sincos_all", "speed", "switched", "tanh", "turn", "within", "wrap"]
+           "sincos_all", "speed", "switched", "target", "tanh", "turn", "within", "wrap"]

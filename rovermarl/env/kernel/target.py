@@ -1,0 +1,63 @@
+"""512-bit vectors where the CPU has them: the numba target features the kernel compiles with, chosen at import.
+
+LLVM tunes many AVX-512 CPUs (Intel's Skylake-SP to Sapphire Rapids) with ``prefer-256-bit``: its vectoriser then
+uses 256-bit registers although the CPU has 512-bit ones (AMD's Zen 4 is tuned for 512 already). :func:`configure`
+runs when this module is imported, which :mod:`rovermarl.env.kernel` does first, before numba compiles anything of
+rovermarl; on a CPU with AVX-512 it sets numba's target features to the host's plus ``-prefer-256-bit``. On other
+CPUs it does nothing, so it is safe everywhere. Results stay bit-identical: the vector width changes how many
+episodes one instruction holds, not what any episode computes (no reduction is reordered;
+``tests/test_kernel_target.py`` compares the bits).
+
+``ROVERMARL_VECTORS`` chooses: ``auto`` (default: as above, unless ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is
+set, which then rule), ``512`` (also with ``NUMBA_CPU_NAME``, e.g. to build for an Intel target elsewhere) or
+``off`` (numba's own choice); another value is warned about in one line and read as ``auto``. numba's cache keys on
+the features, so each choice compiles once. If numba compiled something before rovermarl was imported, its target
+is already built and this changes nothing but the cache key.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+
+CHOICES = ("auto", "512", "off")
+
+
+def features(host: str, choice: str = "auto", cpu_name: str | None = None, cpu_features: str | None = None
+             ) -> str | None:
+    """The numba target features for host features ``host`` (LLVM's comma-separated ``+x,-y`` string), or None to
+    leave numba's own.
+
+    >>> features("+avx2,+avx512f,+fma")
+    '+avx2,+avx512f,+fma,-prefer-256-bit'
+    >>> features("+avx2,-avx512f,+fma") is None, features("+avx512f", cpu_name="skylake-avx512") is None
+    (True, True)
+    >>> features("+avx512f", "512", cpu_name="skylake-avx512")
+    '+avx512f,-prefer-256-bit'
+    """
+    if choice not in CHOICES:
+        raise ValueError(f"ROVERMARL_VECTORS={choice!r}: must be one of {', '.join(CHOICES)}")
+    if choice == "off" or cpu_features or (choice == "auto" and cpu_name):
+        return None
+    if "+avx512f" not in host.split(","):
+        return None
+    return f"{host},-prefer-256-bit"
+
+
+def configure() -> str | None:
+    """Apply :func:`features` to numba's config for this process (see the module doc); returns what it set."""
+    from numba.core import codegen, config
+
+    choice = os.environ.get("ROVERMARL_VECTORS", "auto")
+    if choice not in CHOICES:
+        warnings.warn(f"ROVERMARL_VECTORS={choice!r}: must be one of {', '.join(CHOICES)}; using auto", stacklevel=3)
+        choice = "auto"
+    chosen = features(codegen.get_host_cpu_features(), choice, os.environ.get("NUMBA_CPU_NAME"),
+                      os.environ.get("NUMBA_CPU_FEATURES"))
+    if chosen is not None:
+        os.environ["NUMBA_CPU_FEATURES"] = chosen          # Ray workers and subprocesses inherit the choice
+        config.reload_config()
+    return chosen
+
+
+SET = configure()    # on import, which the kernel package does first: the features set, or None
