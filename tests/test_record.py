@@ -215,3 +215,20 @@ def test_job_with_only_corrupt_checkpoints_says_so_and_starts_from_scratch(tmp_p
         out = run_job(cfg, tmp_path / "job")
     assert f"{ckpt}: checksum mismatch" in caplog.text and "starts from scratch" in caplog.text
     assert out["final_score"] == ref["final_score"]
+
+
+def test_a_killed_launch_keeps_its_compute(tmp_path):
+    """launch.json holds a running launch's compute; the next launch files it in invocations.jsonl as interrupted,
+    and a finished launch's own line follows."""
+    from rovermarl.record.outputs import close_launch, launch_progress
+
+    close_launch(tmp_path)                                        # nothing left behind: nothing filed
+    assert not (tmp_path / "invocations.jsonl").exists()
+    launch_progress(tmp_path, {"wall_time_s": 1.0, "team_evals": 100, "runs_advanced": 2})
+    launch_progress(tmp_path, {"wall_time_s": 2.5, "team_evals": 300, "runs_advanced": 2})   # replaced, not added
+    close_launch(tmp_path)
+    close_launch(tmp_path, {"wall_time_s": 4.0, "team_evals": 500, "runs_advanced": 1})
+    lines = [json.loads(x) for x in (tmp_path / "invocations.jsonl").read_text().splitlines()]
+    assert lines == [{"wall_time_s": 2.5, "team_evals": 300, "runs_advanced": 2, "interrupted": True},
+                     {"wall_time_s": 4.0, "team_evals": 500, "runs_advanced": 1}]
+    assert not (tmp_path / "launch.json").exists()

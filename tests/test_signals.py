@@ -1,6 +1,7 @@
 """Ctrl-C (SIGINT) and SIGTERM mid-sweep: one line, exit 130 / 143, no traceback, no Ray process left behind; the
 relaunch resumes to the curves of an uninterrupted run."""
 
+import json
 import os
 import signal
 import subprocess
@@ -49,6 +50,11 @@ def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path,
     got, want = sweep_curves(sweep), sweep_curves(tmp_path / "ref")
     assert len(want) == 4
     assert_same_curves(got, want)
+    launches = {job.name: [json.loads(x) for x in (job / "invocations.jsonl").read_text().splitlines()]
+                for job in sweep.iterdir() if (job / "invocations.jsonl").is_file()}
+    killed = [x for lines in launches.values() for x in lines if x.get("interrupted")]
+    assert len(killed) == 1 and killed[0]["team_evals"] > 0, launches      # the killed launch's compute is kept
+    assert not list(sweep.glob("*/launch.json"))
 
 
 def test_an_interrupt_dropped_in_a_finalizer_is_delivered_again():

@@ -13,7 +13,7 @@ from rovermarl.analysis.curves import GRID_POINTS, Curves, change_points, log_gr
 from rovermarl.analysis.rerun import mutated_rovers
 from rovermarl.analysis.results import COUPLING_KINDS, ResultsError
 from rovermarl.analysis.sweep import Job, fig6_job, find_jobs, labels
-from rovermarl.record.outputs import atomic_open, write_json
+from rovermarl.record.outputs import INVOCATIONS, LAUNCH, atomic_open, write_json
 
 
 def coupling(curve, episodes: int) -> dict | None:
@@ -39,9 +39,11 @@ def coupling(curve, episodes: int) -> dict | None:
 
 
 def compute_of(job: Job) -> dict:
-    """Team evaluations and wall time of every launch of the job (``invocations.jsonl``; else summary.json)."""
-    log = job.path / "invocations.jsonl"
+    """Team evaluations and wall time of every launch of the job (``invocations.jsonl``, and the ``launch.json`` of
+    a killed launch not relaunched since; else summary.json)."""
+    log, killed = job.path / INVOCATIONS, job.path / LAUNCH
     launches = [json.loads(x) for x in log.read_text().splitlines() if x.strip()] if log.is_file() else []
+    launches += [json.loads(killed.read_text())] if killed.is_file() else []
     if not launches:                                                     # jobs run before the log existed
         summary = json.loads((job.path / "summary.json").read_text())
         launches = [{"wall_time_s": summary.get("wall_time_s", 0.0), "team_evals": summary.get("team_evals", 0)}]

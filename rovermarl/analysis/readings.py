@@ -24,6 +24,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl.analysis import stats
+from rovermarl.analysis.export import compute_of
 from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.env import World
@@ -88,12 +89,9 @@ def export(sweep: Path, out: Path, log=print) -> dict:
                 "final": float(run.score[-1]), "final_step": _final_step(world, run.path),
                 "heldout": float(meta["heldout_score"]),
                 "first": {str(lv): _first(run.score, lv) for lv in LEVELS}}
-        log_path = job.path / "invocations.jsonl"
-        launches = [json.loads(x) for x in log_path.read_text().splitlines() if x.strip()]
         entries.append({"job": job.path.name, "reading": reading_of(job.overrides), "setup": job.setup,
                         "method": _method(job), "generations": len(job.runs[0].score) - 1, "runs": runs,
-                        "compute": {"launches": len(launches), "wall_time_s": sum(x["wall_time_s"] for x in launches),
-                                    "team_evals": sum(x["team_evals"] for x in launches)},
+                        "compute": compute_of(job),
                         "median_heldout_score": summary["median_heldout_score"]})
     if not entries:
         raise ResultsError(f"{sweep}: no finished job of a readings sweep")

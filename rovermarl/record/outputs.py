@@ -161,3 +161,26 @@ def write_json(path: Path, obj: dict) -> None:
     with atomic_open(path, "w") as f:
         json.dump(obj, f, indent=2)
         f.write("\n")
+
+
+INVOCATIONS, LAUNCH = "invocations.jsonl", "launch.json"   # every launch's compute; the running launch's so far
+
+
+def launch_progress(job_dir: Path, record: dict) -> None:
+    """The running launch's compute so far (``wall_time_s``, ``team_evals``, ``runs_advanced``) into the job's
+    ``launch.json``, replaced atomically: what a launch that is killed leaves behind."""
+    write_json(Path(job_dir) / LAUNCH, record)
+
+
+def close_launch(job_dir: Path, record: dict | None = None) -> None:
+    """Append a launch's compute to the job's ``invocations.jsonl``: ``record`` (a launch that finished), or else
+    the ``launch.json`` that a killed launch left (marked ``"interrupted": true``); then remove ``launch.json``."""
+    job_dir = Path(job_dir)
+    progress = job_dir / LAUNCH
+    if record is None:
+        if not progress.is_file():
+            return
+        record = {**json.loads(progress.read_text()), "interrupted": True}
+    with open(job_dir / INVOCATIONS, "a") as f:
+        f.write(json.dumps(record) + "\n")
+    progress.unlink(missing_ok=True)

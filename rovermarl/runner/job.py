@@ -21,7 +21,9 @@ from rovermarl.record import checkpoint, lock
 from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import (
     atomic_open,
+    close_launch,
     finished,
+    launch_progress,
     load_score,
     outcome,
     run_dir,
@@ -99,7 +101,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     batch = budget.batch_size(job, series_bytes(series))
     if batch < len(todo):
         log.info("%s: %d runs stream in batches of %d (what fits in memory)", name, len(todo), batch)
-    t0, evaluations = time.perf_counter(), 0
+    close_launch(job_dir)                                               # the compute of a launch that was killed
+    t0, evaluations, started = time.perf_counter(), 0, time.time()
     with tqdm(total=len(todo) * cfg.generations, desc=name, unit="gen", disable=None, leave=False,
               dynamic_ncols=True) as bar:
         def on_chunk(rec: RunRecord, advanced: int) -> None:
@@ -113,6 +116,11 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
                 bar.set_postfix_str(f"runs {len(outcomes)}/{len(seeds)}")
             elif rec.generation // every > (rec.generation - advanced) // every:
                 rec.save(out / "checkpoint.bin", key)
+            else:
+                return
+            launch_progress(job_dir, {"started_at": started, "wall_time_s": time.perf_counter() - t0,
+                                      "team_evals": evaluations + sum(r.evaluations for r in records),
+                                      "runs_advanced": len(todo)})
 
         for i in range(0, len(todo), batch):                            # the records of one batch at a time
             records = [_record(cfg, job_dir, seed, key, series, name) for seed in todo[i:i + batch]]
@@ -124,9 +132,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
                         heldout=heldout)
     summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
     write_json(summary_path, summary)
-    with open(job_dir / "invocations.jsonl", "a") as f:                  # compute of every launch, for totals
-        f.write(json.dumps({"finished_at": time.time(), "wall_time_s": wall, "team_evals": summary["team_evals"],
-                            "runs_advanced": len(todo)}) + "\n")
+    close_launch(job_dir, {"started_at": started, "finished_at": time.time(), "wall_time_s": wall,
+                           "team_evals": summary["team_evals"], "runs_advanced": len(todo)})
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
