@@ -255,9 +255,10 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
     nr = 0
     for k in range(d):
         ok = U(k * ne + q0)
-        nz = False
-        for e in range(ep):
-            nz |= obs[ok + U(e)] != 0.0
+        nz = obs[ok] != 0.0                          # most rows that are not zero are so in the first episode
+        if not nz:
+            for e in range(1, ep):
+                nz |= obs[ok + U(e)] != 0.0
         if nz:
             rows[nr] = k
             nr += 1
