@@ -108,19 +108,19 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         def on_chunk(rec: RunRecord, advanced: int) -> None:
             bar.update(advanced)
             out = run_dir(job_dir, rec.seed)
+            saving = rec.generation // every > (rec.generation - advanced) // every
+            if rec.done or saving:                                     # the compute so far, before any file of it
+                launch_progress(job_dir, {"started_at": started, "wall_time_s": time.perf_counter() - t0,
+                                          "team_evals": evaluations + sum(r.evaluations for r in records),
+                                          "runs_advanced": len(todo)})
             if rec.done:
                 save_run(job_dir, rec.result(), series, key, rrd)
                 checkpoint.remove(out / "checkpoint.bin")
                 outcomes[rec.seed] = outcome(rec.score, cfg.levels)
                 heldout[rec.seed] = float(rec.extra["heldout_score"])
                 bar.set_postfix_str(f"runs {len(outcomes)}/{len(seeds)}")
-            elif rec.generation // every > (rec.generation - advanced) // every:
+            elif saving:
                 rec.save(out / "checkpoint.bin", key)
-            else:
-                return
-            launch_progress(job_dir, {"started_at": started, "wall_time_s": time.perf_counter() - t0,
-                                      "team_evals": evaluations + sum(r.evaluations for r in records),
-                                      "runs_advanced": len(todo)})
 
         for i in range(0, len(todo), batch):                            # the records of one batch at a time
             records = [_record(cfg, job_dir, seed, key, series, name) for seed in todo[i:i + batch]]
