@@ -1,9 +1,11 @@
-"""How the MLP's hidden layer sums its inputs, measured: the kernel's ``_mlp`` (register tiles of 4 hidden units x
-8 episodes, ``rovermarl/env/kernel/simd.py``) against plain loops that numba's vectoriser handles, with R input rows
-by W hidden units per pass over the episodes (``4x2`` was the kernel's until the tiles came). Every variant adds
-each (unit, episode)'s inputs in the same order, so all are bit-identical (checked: ``equal``). Prints one JSON line.
+"""How the MLP's hidden layer sums its inputs, measured: the kernel's ``_mlp`` (register tiles of 8 hidden units x 8
+float64 or 16 float32 episodes, ``rovermarl/env/kernel/simd.py``) against plain loops that numba's vectoriser handles,
+with R input rows by W hidden units per pass over the episodes (``4x2`` was the kernel's until the tiles came). Every
+variant adds each (unit, episode)'s inputs in the same order, so all are bit-identical (checked: ``equal``). Prints one
+JSON line.
 
     python benchmarks/mlp_blocking.py [--setup solo] [--reps 20000] [--repeats 15] [--variants 4x2,4x4,8x1]
+                                      [--dtype float64|float32]
 
 Each variant is compiled with the kernel's options (FMA contraction only) and timed in the same process as the
 kernel's ``_mlp``, in rotating order, on one team's observations of random rover states. ``ns_per_agent_step`` is
@@ -87,9 +89,8 @@ def variant_source(rows: int, units: int) -> str:
 
 def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
-    namespace = {"U": np.uint64, "tanh": kmath.tanh, "hidden_tile": simd.hidden_tile,
-                 "output_tile": simd.output_tile, "UNITS": simd.UNITS,
-                 "EPISODES": simd.EPISODES}
+    namespace = {"U": np.uint64, "tanh": kmath.tanh, "like": kmath.like, "hidden_tile": simd.hidden_tile,
+                 "output_tile": simd.output_tile, "UNITS": simd.UNITS, "lanes": simd.lanes}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
     return njit(**options)(namespace["_mlp"])
@@ -102,7 +103,7 @@ def team_loop(mlp):
     def loop(genomes, obs, n_ep, hidden, reps, hid, rows, a0, a1):
         ne = a0.shape[0]
         for _ in range(reps):
-            pre, units = np.empty(2 * n_ep), np.arange(hidden)
+            pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
                 mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
@@ -113,8 +114,9 @@ def team_loop(mlp):
     return loop
 
 
-def inputs(world, seed: int = 0):
-    """A random team and its observations of random rover states inside the POI field (dense inputs)."""
+def inputs(world, seed: int = 0, dtype=np.float64):
+    """A random team and its observations of random rover states inside the POI field (dense inputs), in
+    ``dtype``."""
     rng = np.random.default_rng(seed)
     n_ep, n = world.episodes, world.n_rovers
     ne, d = n * n_ep, 3 * world.poi_xy.shape[0] + 2 * n
@@ -125,7 +127,7 @@ def inputs(world, seed: int = 0):
     obs = np.empty(d * ne)
     sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs)
     genomes = rng.uniform(-2, 2, (n, world.n_params))
-    return genomes, obs, n_ep, world.hidden, d, ne
+    return genomes.astype(dtype), obs.astype(dtype), n_ep, world.hidden, d, ne
 
 
 def main() -> None:
@@ -133,35 +135,37 @@ def main() -> None:
     p.add_argument("--setup", default="solo")
     p.add_argument("--reps", type=int, default=20000, help="team act stages per timing")
     p.add_argument("--repeats", type=int, default=15)
+    p.add_argument("--dtype", default="float64", choices=("float64", "float32"), help="the kernel's precision")
     p.add_argument("--variants", default="4x2,4x1,2x2,8x1,8x2,4x4,2x4,1x16",
                    help="ROWSxUNITS per pass, comma-separated")
     a = p.parse_args()
-    genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup))
+    f = np.dtype(a.dtype).type
+    genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup), dtype=f)
     options = {k: v for k, v in FAST.items() if k != "cache"}
     mlps = {"kernel": _mlp, "kernel_again": njit(**options)(_mlp.py_func),
-            "no_tanh": compile_variant(kernel_source(squash="hid[v] * 0.5")),
-            "no_matmul_no_tanh": compile_variant(kernel_source(sums=False, squash="hid[v] * 0.5"))}
+            "no_tanh": compile_variant(kernel_source(squash="hid[v] * like(hid[v], 0.5)")),
+            "no_matmul_no_tanh": compile_variant(kernel_source(sums=False, squash="hid[v] * like(hid[v], 0.5)"))}
     for v in a.variants.split(","):
         rows, units = (int(s) for s in v.split("x"))
         mlps[v] = compile_variant(variant_source(rows, units))
     loops, outs = {}, {}
     for name, mlp in mlps.items():
         loops[name] = team_loop(mlp)
-        outs[name] = (np.empty(ne), np.empty(ne))
-        loops[name](genomes, obs, n_ep, hidden, 1, np.empty(hidden * n_ep), np.empty(d, np.int64), *outs[name])
+        outs[name] = (np.empty(ne, f), np.empty(ne, f))
+        loops[name](genomes, obs, n_ep, hidden, 1, np.empty(hidden * n_ep, f), np.empty(d, np.int64), *outs[name])
     names = list(loops)
     seconds = {name: [] for name in names}
     for r in range(a.repeats):                                       # rotating order: noise hits all alike
         for name in names[r % len(names):] + names[:r % len(names)]:
             t = time.process_time()
-            loops[name](genomes, obs, n_ep, hidden, a.reps, np.empty(hidden * n_ep), np.empty(d, np.int64),
-                        np.empty(ne), np.empty(ne))
+            loops[name](genomes, obs, n_ep, hidden, a.reps, np.empty(hidden * n_ep, f), np.empty(d, np.int64),
+                        np.empty(ne, f), np.empty(ne, f))
             seconds[name].append(time.process_time() - t)
     ns = {name: min(seconds[name]) / (a.reps * ne) * 1e9 for name in names}
     kernel_s = np.array(seconds["kernel"])
     ref = outs["kernel"]
     print(json.dumps({
-        "benchmark": "mlp_blocking", "setup": a.setup, "reps": a.reps, "repeats": a.repeats,
+        "benchmark": "mlp_blocking", "setup": a.setup, "dtype": a.dtype, "reps": a.reps, "repeats": a.repeats,
         "clock": "process CPU time", "cpus": os.cpu_count(),
         "ns_per_agent_step": {name: round(v, 2) for name, v in ns.items()},
         "over_kernel": {name: round(float(np.median(kernel_s / np.array(seconds[name]))), 3) for name in names},

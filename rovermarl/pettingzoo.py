@@ -7,7 +7,7 @@ Parallel API         Yes
 Manual control       No
 Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by default)
 Action shape         (2,): ``(a0, a1)`` in [-1, 1] (speed, turn; SPEC section 3), clipped to that box
-Action values        ``Box(-1, 1, (2,), float64)``
+Action values        ``Box(-1, 1, (2,), float64)`` (float32 under ``env.dtype=float32``, as the observations)
 Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2)
 Observation values   ``Box`` of float64: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
 Episode              ``env.steps`` (15) steps, then every agent is truncated; no termination
@@ -17,10 +17,10 @@ Reward               the team's, the same for every agent (SPEC section 1, ``env
 ==================== ===========================================================================================
 
 ``parallel_env(setup="duo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
-the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``n_rovers``, ``steps``, ...). ``reset(seed=s)``
-starts from ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those
-initial conditions in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws
-the next start from a stream of the last seed. Each step runs the world's own compiled stages
+the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_rovers``, ``steps``, ...).
+``reset(seed=s)`` starts from ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is
+episode 0 of those initial conditions in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()``
+without a seed draws the next start from a stream of the last seed. Each step runs the world's own compiled stages
 (:mod:`rovermarl.env.kernel.stages`, ``move`` then ``sense``), the rollout's dynamics, one implementation.
 
 ``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
@@ -77,11 +77,13 @@ class RoverParallelEnv(ParallelEnv):
         low = np.full(world.obs_dim, -1.0)
         high = np.ones(world.obs_dim)
         low[2:3 * world.n_pois:3], high[2:3 * world.n_pois:3] = -kinds, kinds   # the POI type slots
-        self._obs_space = spaces.Box(low, high, dtype=np.float64)
-        self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=np.float64)
+        f = self._f = np.dtype(world.dtype).type                          # env.dtype: the kernel's precision
+        self._obs_space = spaces.Box(low.astype(f), high.astype(f), dtype=f)
+        self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=f)
         self._mode = kernel.REWARDS.index(world.reward)
         self._coupling, self._value = np.array(world.coupling, np.int64), np.array(world.value, np.float64)
-        self._type = world.poi_sensor_type
+        self._poi, self._type = world.poi_xy.astype(f), world.poi_sensor_type.astype(f)   # as World.kernel_args
+        self._radius = f(world.obs_radius)
         self._rng = np.random.default_rng()
         self.t = 0
 
@@ -101,9 +103,9 @@ class RoverParallelEnv(ParallelEnv):
         else:
             xy, heading = self.world.initial_conditions(self._rng, n=1)
         w = self.world
-        self.xy, self.heading = xy, heading                                  # (1, N, 2), (1, N)
+        self.xy, self.heading = xy.astype(self._f), heading.astype(self._f)  # (1, N, 2), (1, N)
         self.path = np.empty((w.steps + 1, w.n_rovers, 2))
-        self.path[0] = xy[0]
+        self.path[0] = self.xy[0]
         self.t, self.value = 0, 0.0
         self.agents = list(self.possible_agents)
         self._count = np.empty((1, w.n_pois), np.int64)
@@ -117,13 +119,14 @@ class RoverParallelEnv(ParallelEnv):
         if not self.agents:
             raise RuntimeError("the episode is over: call reset()")
         w = self.world
-        a = np.zeros((1, w.n_rovers, 2))
+        f = self._f
+        a = np.zeros((1, w.n_rovers, 2), f)
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
-                a[0, i] = np.clip(np.asarray(actions[agent], dtype=np.float64).reshape(2), ACTION_LOW, ACTION_HIGH)
+                a[0, i] = np.clip(np.asarray(actions[agent], dtype=f).reshape(2), ACTION_LOW, ACTION_HIGH)
         if not np.isfinite(a).all():
             raise ValueError("actions must be finite numbers")
-        kernel.move(self.xy, self.heading, a, float(w.v_max), w.w_max, kernel.SPEEDS.index(w.speed))
+        kernel.move(self.xy, self.heading, a, f(w.v_max), f(w.w_max), kernel.SPEEDS.index(w.speed))
         self.t += 1
         self.path[self.t] = self.xy[0]
         before, self.value = self.value, self._running_return()
@@ -139,24 +142,25 @@ class RoverParallelEnv(ParallelEnv):
     def _running_return(self) -> float:
         """The team's return so far in the world's reading (after the last step: the episode's return)."""
         w = self.world
+        xy, out = self.xy.astype(np.float64), np.empty(1)                      # the rollout's reward reads float64
         if self._mode == 0:                                                    # final: the positions now
-            return float(w.team_return(self.xy)[0])
-        kernel.fold(self._mode, self.xy, w.poi_xy, self._coupling, self._value, float(w.obs_radius), self._count,
+            kernel.reward(xy, self._poi, self._coupling, self._value, self._radius, out)
+            return float(out[0])
+        kernel.fold(self._mode, xy, self._poi, self._coupling, self._value, self._radius, self._count,
                     self._step, self._peak, self._acc)
-        out = np.empty(1)
         kernel.settle(self._mode, w.steps, self._coupling, self._value, self._peak, self._acc, out)
         return float(out[0])
 
     def _observe(self) -> dict:
         w = self.world
-        obs = np.empty((1, w.n_rovers, w.obs_dim))
-        kernel.sense(self.xy, self.heading, w.poi_xy, self._type, float(w.sensor_range), obs)
+        obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
+        kernel.sense(self.xy, self.heading, self._poi, self._type, self._f(w.sensor_range), obs)
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
 
     def _infos(self) -> dict:
         w = self.world
         count = np.zeros((1, w.n_pois), np.int64)
-        kernel.observers(self.xy, w.poi_xy, float(w.obs_radius), count)
+        kernel.observers(self.xy.astype(np.float64), self._poi, self._radius, count)
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 
@@ -182,12 +186,12 @@ class RoverParallelEnv(ParallelEnv):
 def genome_policy(world: World, genomes: np.ndarray):
     """Actions of a team of genomes (N, P) through the world's MLP (the rollout's compiled ``act``): a function of
     an observation dict, returning an action dict (bit-identical to what :meth:`World.rollout` does)."""
-    genomes = np.ascontiguousarray(genomes, dtype=np.float64)
+    genomes = np.ascontiguousarray(genomes, dtype=world.dtype)
     agents = [f"rover_{i}" for i in range(world.n_rovers)]
 
     def policy(observations: dict) -> dict:
-        obs = np.stack([observations[a] for a in agents])[None]               # (1, N, D)
-        out = np.empty((1, world.n_rovers, 2))
+        obs = np.stack([observations[a] for a in agents])[None].astype(world.dtype)   # (1, N, D)
+        out = np.empty((1, world.n_rovers, 2), world.dtype)
         kernel.act(genomes, np.ascontiguousarray(obs), world.hidden, out)
         return {a: out[0, i] for i, a in enumerate(agents)}
 

@@ -49,6 +49,7 @@ def _assert_same(a, b, path="run"):
     ["k=2", "selection=strict", "record.occupancy=false"],
     ["k=adaptive", "k.reward=gain", "k.arms=[1,3]", "mutation.p_gaussian=0.5"],
     ["k=3", "env.reward=any_step", "env.speed=clip", "env.episodes=9"],
+    ["k=adaptive", "setup=duo", "env.dtype=float32"],
 ])
 def test_compiled_loop_gives_the_python_loops_run(overrides, monkeypatch):
     py = _run(overrides, "python", monkeypatch)

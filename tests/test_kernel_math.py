@@ -210,3 +210,46 @@ def test_docstring_examples_run(fn):
     runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
     runner.run(test)
     assert test.examples and runner.failures == 0
+
+
+# ---- env.dtype=float32 ------------------------------------------------------------------------------------------
+
+def ulps32(got, want):
+    """Error of float32 got in float32 ulps of the float64 value want."""
+    want32 = np.abs(want).astype(np.float32)
+    return np.abs(got.astype(np.float64) - want) / np.spacing(np.maximum(want32, np.float32(1e-30))).astype(float)
+
+
+def test_float32_functions_are_float32_and_near_the_true_value():
+    from numba import njit, types
+
+    f = np.float32
+    x = np.concatenate([RNG.uniform(-12, 12, N), RNG.normal(0, 1e-3, N // 10), [0.0, 7.9, -9.0, 20.0]]).astype(f)
+    got = np.empty_like(x)
+    tanh_array(x, got)
+    assert ulps32(got, np.tanh(x.astype(float))).max() <= 5                      # measured 4.4
+    y, z = RNG.uniform(-40, 40, N).astype(f), RNG.uniform(-40, 40, N).astype(f)
+    got = np.empty_like(y)
+    atan2_array(y, z, got)
+    assert ulps32(got, np.arctan2(y.astype(float), z.astype(float))).max() <= 3    # measured 2.1
+    a = RNG.uniform(-40, 40, N).astype(f)
+    s, c = np.empty_like(a), np.empty_like(a)
+    kernel.sincos_all(a, s, c)
+    assert np.abs(s - np.sin(a.astype(float))).max() < 4e-7 and np.abs(c - np.cos(a.astype(float))).max() < 4e-7
+    wrapped = (njit(lambda v: kernel.tanh(v)), njit(lambda v: kernel.atan2(v, v)), njit(lambda v: kernel.sincos(v)))
+    for fn in wrapped:                                                             # no float64 inside
+        fn(f(0.5))
+        ret = fn.nopython_signatures[0].return_type
+        assert ret in (types.float32, types.UniTuple(types.float32, 2)), ret
+
+
+def test_float32_rollouts_are_close_to_float64():
+    w64, w32 = make_world("duo"), make_world("duo", dtype="float32")
+    rng = np.random.default_rng(3)
+    ic = w64.run_ic(3)
+    for t in range(5):
+        genomes = rng.normal(0, 0.3, (4, w64.n_params))
+        r64, r32 = w64.rollout(genomes, ic), w32.rollout(genomes, ic)
+        assert r32.xy.dtype == r32.returns.dtype == np.float64
+        assert 0 < np.abs(r32.xy - r64.xy).max() < 1e-3, t                     # close, not equal
+        assert np.array_equal(r32.returns, w32.returns(genomes, ic))

@@ -11,8 +11,9 @@ from rovermarl.runner import Run
 from tests.conftest import make_cfg
 
 
-def test_parallel_api_test_passes():
-    parallel_api_test(parallel_env("duo"), num_cycles=100)
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_parallel_api_test_passes(dtype):
+    parallel_api_test(parallel_env("duo", dtype=dtype), num_cycles=100)
 
 
 def test_aec_api_test_passes():
@@ -44,7 +45,7 @@ def episode(e, policy, seed):
 
 @pytest.mark.parametrize("overrides", [{}, {"reward": "any_step"}, {"reward": "best_step"},
                                        {"reward": "mean_step", "speed": "clip", "poi_type": "value"},
-                                       {"poi_type": "sign"}])
+                                       {"poi_type": "sign"}, {"dtype": "float32"}])
 def test_a_genome_team_gets_exactly_the_worlds_returns(overrides, trained):
     world = make_world("duo", **overrides)
     rng = np.random.default_rng(5)

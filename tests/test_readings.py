@@ -140,7 +140,8 @@ def test_any_step_bound_is_every_poi():
     assert make_world("duo", reward="any_step").max_return == 14.0
 
 
-@pytest.mark.parametrize("key,value", [("reward", "every_step"), ("speed", "linear"), ("poi_type", 1)])
+@pytest.mark.parametrize("key,value", [("reward", "every_step"), ("speed", "linear"), ("poi_type", 1),
+                                       ("dtype", "float16")])
 def test_bad_option_is_one_line(key, value):
     with pytest.raises(errors.ConfigError, match=f"^env.{key}={value}: must be one of") as e:
         make_world("duo", **{key: value})
@@ -213,8 +214,8 @@ def test_new_options_at_their_defaults_keep_a_runs_identity():
 
     plain = to_plain(compose_config("k=2"))
     before = {k: v for k, v in plain.items() if k != "evaluation"}
-    before["env"] = {k: v for k, v in plain["env"].items() if k not in ("reward", "speed", "poi_type")}
+    before["env"] = {k: v for k, v in plain["env"].items() if k not in ("reward", "speed", "poi_type", "dtype")}
     assert config_hash(plain) == config_hash(before)
     for override in ("env.reward=any_step", "env.speed=clip", "env.poi_type=sign", "evaluation.fresh_ic=true",
-                     "evaluation.heldout=64"):
+                     "evaluation.heldout=64", "env.dtype=float32"):
         assert config_hash(to_plain(compose_config("k=2", override))) != config_hash(plain), override

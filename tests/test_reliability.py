@@ -42,6 +42,20 @@ def test_ic_shards_equal_local_evaluation(ray_session, tmp_path, fresh):
     _assert_same(_arrays(tmp_path / "local"), _arrays(tmp_path / "shards"))
 
 
+def test_float32_runs_are_identical_serial_on_ray_and_over_ic_shards(ray_session, tmp_path):
+    """env.dtype=float32 is close to float64, not equal to it, but a float32 run is one number wherever it runs."""
+    over = ["setup=duo", "k=adaptive", "generations=60", "seeds=2", "parallel.chunk=25", "env.dtype=float32"]
+    run_job(make_cfg(*over, "parallel=serial"), tmp_path / "serial")
+    run_job(make_cfg(*over), tmp_path / "ray")
+    run_job(make_cfg(*over, "parallel.ic_shards=2"), tmp_path / "shards")
+    serial = _arrays(tmp_path / "serial")
+    _assert_same(serial, _arrays(tmp_path / "ray"))
+    _assert_same(serial, _arrays(tmp_path / "shards"))
+    run_job(make_cfg(*over[:-1], "parallel=serial"), tmp_path / "float64")
+    float64 = _arrays(tmp_path / "float64")                      # the same scores here, other trajectories
+    assert all(not np.array_equal(serial[key], float64[key]) for key in serial if key[1:] == ("behaviour.npz", "xy"))
+
+
 def _kill_one_running_task(killed: list, stop: threading.Event):
     """SIGKILL the first worker of this session's Ray (a descendant of this process, never another Ray on the
     machine) seen executing a chunk."""

@@ -79,7 +79,7 @@ def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_se
     EXP3's probabilities before its choice to ``out_probs`` (n, K). ``world`` is ``World.kernel_args(ic)``."""
     xy0, h0 = world[0], world[1]
     returns = np.empty(h0.shape[0])
-    team = np.empty((n_rovers, parents.shape[1]))
+    team = np.empty((n_rovers, parents.shape[1]), dtype=xy0.dtype)      # in the kernel's precision (env.dtype)
     children = np.empty_like(parents)
     mutated = np.empty(n_rovers, dtype=np.bool_)
     no_xy, no_heading = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1))                 # no trajectories

@@ -23,6 +23,7 @@ _NO_HEADING = np.empty((0, 1, 1))
 _NO_FINAL = np.empty((0, 1, 2))
 
 InitialConditions = tuple[np.ndarray, np.ndarray]  # xy (E, N, 2), heading (E, N)
+DTYPES = ("float64", "float32")   # env.dtype: float32 is close to float64, not bit-identical (README)
 HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
 
 
@@ -59,6 +60,7 @@ class World:
     reward: str = "final"
     speed: str = "affine"
     poi_type: str = "coupling"
+    dtype: str = "float64"
     hidden: int = 16
     name: str = ""
     poi_xy: np.ndarray = field(init=False, repr=False)
@@ -88,6 +90,7 @@ class World:
         errors.choice("env.reward", self.reward, kernel.REWARDS)
         errors.choice("env.speed", self.speed, kernel.SPEEDS)
         errors.choice("env.poi_type", self.poi_type, kernel.POI_TYPES)
+        errors.choice("env.dtype", self.dtype, DTYPES)
         object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))
         object.__setattr__(self, "value", tuple(float(v) for v in self.value))
         angle = 2 * np.pi * np.arange(self.n_pois) / self.n_pois
@@ -284,14 +287,17 @@ class World:
     def kernel_args(self, ic: InitialConditions) -> tuple:
         """The arguments of :func:`kernel.rollout <rovermarl.env.kernel.rollout>` before its outputs: the initial
         conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then the world's arrays and
-        numbers, e.g. for a compiled loop that evaluates teams itself."""
-        return (*self._batch(*ic), self.poi_xy, self._type, self._coupling, self._value, self.steps, self.hidden,
-                float(self.sensor_range), float(self.obs_radius), float(self.v_max), self.w_max,
-                kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
+        numbers, e.g. for a compiled loop that evaluates teams itself. Floats are in ``env.dtype`` (the genomes
+        must be too)."""
+        f = np.dtype(self.dtype).type                      # env.dtype: the kernel's precision
+        xy0, h0 = (np.ascontiguousarray(a, dtype=f) for a in self._batch(*ic))
+        return (xy0, h0, self.poi_xy.astype(f, copy=False), self._type.astype(f, copy=False), self._coupling,
+                self._value, self.steps, self.hidden, f(self.sensor_range), f(self.obs_radius), f(self.v_max),
+                f(self.w_max), kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
 
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(genomes, *self.kernel_args((xy0, h0)), returns, traj_xy, traj_heading,
-                       _NO_FINAL if final_xy is None else final_xy)
+        kernel.rollout(genomes.astype(self.dtype, copy=False), *self.kernel_args((xy0, h0)), returns, traj_xy,
+                       traj_heading, _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
         genomes = np.ascontiguousarray(genomes, dtype=np.float64)

@@ -23,7 +23,8 @@ NOT_IN_RUN_IDENTITY = (*RUNTIME, "seeds", "seed", "levels")
 NOT_IN_DIR_NAMES = (*RUNTIME, "seeds")
 RECORDED = ("occupancy", "behaviour")
 LATER_KEYS = {("env", "reward"): "final", ("env", "speed"): "affine", ("env", "poi_type"): "coupling",
-              ("evaluation", "fresh_ic"): False, ("evaluation", "heldout"): 256}
+              ("evaluation", "fresh_ic"): False, ("evaluation", "heldout"): 256,
+              ("env", "dtype"): "float64"}
 
 
 def config_hash(plain: dict) -> str:

@@ -20,6 +20,8 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N); poi_xy (P, 2), poi_type (P,) (the sensors'
     third number), coupling (P,) int, value (P,); ``steps`` T, ``hidden`` H; w_max in radians; ``speed_mode`` and
     ``reward_mode`` the indices of ``env.speed`` and ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`.
+    The dynamics run in the precision of ``genomes``, ``xy0``, ``heading0``, ``poi_xy``, ``poi_type`` and the four
+    float numbers (all float64, or all float32 under ``env.dtype=float32``); returns and trajectories are float64.
     If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
     arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
     unless its first axis is zero-sized.
@@ -31,10 +33,10 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
     d = 3 * poi_xy.shape[0] + 2 * n
-    state = np.empty((7, ne))
+    state = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    obs = np.empty(d * ne)
-    hid = np.empty(hidden * n_ep)
+    obs = np.empty(d * ne, dtype=xy0.dtype)
+    hid = np.empty(hidden * n_ep, dtype=xy0.dtype)
     rows = np.empty(d, dtype=np.int64)
     to_flat(xy0[:, :, 0], x)
     to_flat(xy0[:, :, 1], y)
@@ -43,7 +45,7 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
         traj_xy[:, 0] = xy0
         traj_heading[:, 0] = heading0
     sincos_all(heading, sin_h, cos_h)
-    xy = np.empty((n_ep, n, 2))
+    xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
     per_step = reward_mode != FINAL
     p = poi_xy.shape[0] if per_step else 0
     count, peak = np.empty((n_ep, p), dtype=np.int64), np.zeros((n_ep, p), dtype=np.int64)

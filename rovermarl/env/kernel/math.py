@@ -1,5 +1,9 @@
 """Elementary functions of the kernel (numba): branchless ``atan2``, ``tanh``, ``sincos``, and ``wrap``.
 
+Each works in its argument's precision (float64, or float32 under ``env.dtype=float32``): numba types a float literal
+as float64, so the constants go through :func:`like` (and :func:`pick` where float32 needs a value of its own), which
+compile to the literal itself for float64 (the same code, bit for bit) and to a float32 constant for float32.
+
 Branchless (selects only) so that LLVM vectorises the loops that inline them: numba 0.68 without SVML leaves calls
 to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py).
 ``FAST`` are the compile options of every vectorised kernel function: FMA contraction only (no reassociation, no
@@ -11,10 +15,36 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import overload
 
 TWO_PI = 2.0 * math.pi
 FAST = {"cache": True, "fastmath": {"contract"}, "error_model": "numpy"}
+_SCALAR = {"fastmath": {"contract"}, "error_model": "numpy"}   # FAST for scalar functions that LLVM inlines
+
+
+def like(x, c):
+    """The constant ``c`` in the precision of the float ``x``: ``c`` itself for float64, ``float32(c)`` for float32."""
+    return np.float32(c) if isinstance(x, np.float32) else c
+
+
+def pick(x, c64, c32):
+    """``c64`` for a float64 ``x``, ``float32(c32)`` for a float32 one (constants that float32 needs of its own)."""
+    return np.float32(c32) if isinstance(x, np.float32) else c64
+
+
+def _is32(x) -> bool:
+    return isinstance(x, types.Float) and x.bitwidth == 32
+
+
+@overload(like, inline="always")
+def _like(x, c):
+    return (lambda x, c: np.float32(c)) if _is32(x) else (lambda x, c: c)
+
+
+@overload(pick, inline="always")
+def _pick(x, c64, c32):
+    return (lambda x, c64, c32: np.float32(c32)) if _is32(x) else (lambda x, c64, c32: c64)
 
 
 @njit(cache=True, inline="always")
@@ -39,6 +69,38 @@ _AQ0, _AQ1, _AQ2, _AQ3, _AQ4 = (2.485846490142306297962e+01, 1.65027009831698854
                                 1.945506571482613964425e+02)
 _BIG = 2.0 ** 800
 _TINY = 2.0 ** -800
+_BIG32, _TINY32 = 2.0 ** 60, 2.0 ** -60  # float32's: its range ends at 2^128
+_PIO4_HI32 = 0.7853981852531433          # fl32(pi/4) and pi/4 - fl32(pi/4)
+_PIO4_LO32 = -2.1855695031547384e-08
+
+
+_TAN_PI8 = 0.41421356237309503            # float32's reduction bound
+_AF0, _AF1, _AF2, _AF3 = 8.05374449538e-2, -1.38776856032e-1, 1.99777106478e-1, -3.33329491539e-1   # Cephes atanf
+
+
+@njit(inline="always", **FAST)
+def _atan64(t):
+    z = t * t
+    p = (((_AP0 * z + _AP1) * z + _AP2) * z + _AP3) * z + _AP4
+    q = ((((z + _AQ0) * z + _AQ1) * z + _AQ2) * z + _AQ3) * z + _AQ4
+    return t + t * (z * p / q)
+
+
+@njit(inline="always", **FAST)
+def _atan32(t):
+    z = t * t
+    f = np.float32
+    return t + (((f(_AF0) * z + f(_AF1)) * z + f(_AF2)) * z + f(_AF3)) * z * t
+
+
+def _atan(t):
+    """atan(t) on the reduced range of :func:`atan2` (no division in float32)."""
+    return math.atan(t)
+
+
+@overload(_atan, jit_options=_SCALAR)
+def _atan_impl(t):
+    return _atan32.py_func if _is32(t) else _atan64.py_func
 
 
 @njit(inline="always", **FAST)
@@ -46,39 +108,40 @@ def atan2(y, x):
     """Branchless ``math.atan2(y, x)`` for floats (within 2 ulp; signed zeros, infinities, NaN as libm).
 
     Octant reduction to ``t = min/max`` or ``(min - max)/(min + max)`` (one division), the Cephes
-    rational on ``|t| <= 0.66``, then ``k*pi/4 +- atan(t)`` with ``pi/4`` split in two parts.
+    rational on ``|t| <= 0.66`` (float32: Cephes ``atanf``'s polynomial on ``|t| <= tan(pi/8)``), then
+    ``k*pi/4 +- atan(t)`` with ``pi/4`` split in two parts.
     """
+    one, zero, two = like(x, 1.0), like(x, 0.0), like(x, 2.0)
+    big_, tiny_ = pick(x, _BIG, _BIG32), pick(x, _TINY, _TINY32)
     ax = abs(x)
     ay = abs(y)
     swap = ay > ax
     num = ax if swap else ay
     den = ay if swap else ax
-    down = den > _BIG
-    up = den < _TINY
-    scale = _TINY if down else 1.0
-    scale = _BIG if up else scale                  # keeps num + den finite and normal
+    down = den > big_
+    up = den < tiny_
+    scale = tiny_ if down else one
+    scale = big_ if up else scale                  # keeps num + den finite and normal
     num = num * scale
     den = den * scale
-    eq = (num == den) & (den > 0.0)                # also inf / inf
-    big = (num > 0.66 * den) | eq
+    eq = (num == den) & (den > zero)               # also inf / inf
+    big = (num > pick(x, 0.66, _TAN_PI8) * den) | eq
     diff = num - den                               # exact (Sterbenz) where used
     total = num + den
     n2 = diff if big else num
-    n2 = 0.0 if eq else n2
+    n2 = zero if eq else n2
     d2 = total if big else den
-    d2 = 1.0 if eq | (den == 0.0) else d2
+    d2 = one if eq | (den == zero) else d2
     t = n2 / d2
-    z = t * t
-    p = (((_AP0 * z + _AP1) * z + _AP2) * z + _AP3) * z + _AP4
-    q = ((((z + _AQ0) * z + _AQ1) * z + _AQ2) * z + _AQ3) * z + _AQ4
-    a = t + t * (z * p / q)
+    a = _atan(t)
     # quadrant bookkeeping in arithmetic (selects on combined conditions would become branches)
-    sw = 1.0 if swap else 0.0
-    bg = 1.0 if big else 0.0
-    xn = 0.5 - 0.5 * math.copysign(1.0, x)        # 1 for x < 0 or x = -0
-    sgn = 1.0 - 2.0 * abs(sw - xn)                 # -1 where exactly one of swap, x < 0 holds
-    k = 2.0 * sw + 4.0 * xn * (1.0 - sw) + bg * sgn
-    r = math.copysign(k * _PIO4_HI + (k * _PIO4_LO + sgn * a), y)
+    sw = one if swap else zero
+    bg = one if big else zero
+    half = like(x, 0.5)
+    xn = half - half * math.copysign(one, x)      # 1 for x < 0 or x = -0
+    sgn = one - two * abs(sw - xn)                 # -1 where exactly one of swap, x < 0 holds
+    k = two * sw + like(x, 4.0) * xn * (one - sw) + bg * sgn
+    r = math.copysign(k * pick(x, _PIO4_HI, _PIO4_HI32) + (k * pick(x, _PIO4_LO, _PIO4_LO32) + sgn * a), y)
     nan = (x != x) | (y != y)
     return x + y if nan else r
 
@@ -113,9 +176,40 @@ def _exp_pos(w):
     return p * float(np.int64(1) << np.int64(n))       # 2^n exactly, n <= 58
 
 
-@njit(inline="always", **FAST)
 def tanh(x):
-    """Branchless ``math.tanh(x)`` (within 2 ulp; signed zeros, +-inf -> +-1, NaN -> NaN).
+    """Branchless ``math.tanh(x)`` in the kernel (:func:`_tanh64`; float32: :func:`_tanh32`); ``math.tanh`` from
+    Python."""
+    return math.tanh(x)
+
+
+@overload(tanh, jit_options=_SCALAR)
+def _tanh(x):
+    return _tanh32.py_func if _is32(x) else _tanh64.py_func
+
+
+_TANH32_CLAMP = 7.90531110763549805      # Eigen's float tanh: an odd rational of degree 13/6 on [-c, c]
+_TANH32_A = (4.89352455891786e-03, 6.37261928875436e-04, 1.48572235717979e-05, 5.12229709037114e-08,
+             -8.60467152213735e-11, 2.00018790482477e-13, -2.76076847742355e-16)
+_TANH32_B = (4.89352518554385e-03, 2.26843463243900e-03, 1.18534705686654e-04, 1.19825839466702e-06)
+
+
+@njit(inline="always", **FAST)
+def _tanh32(x):
+    """float32 tanh: Eigen's rational (one division; within a few float32 ulp), ``x`` itself for ``|x| < 4e-4``."""
+    f = np.float32
+    a0, a1, a2, a3, a4, a5, a6 = _TANH32_A
+    b0, b1, b2, b3 = _TANH32_B
+    c = min(max(x, f(-_TANH32_CLAMP)), f(_TANH32_CLAMP))
+    s = c * c
+    p = ((((((f(a6) * s + f(a5)) * s + f(a4)) * s + f(a3)) * s + f(a2)) * s + f(a1)) * s + f(a0)) * c
+    q = ((f(b3) * s + f(b2)) * s + f(b1)) * s + f(b0)
+    r = p / q
+    return x if abs(x) < f(0.0004) else r
+
+
+@njit(inline="always", **FAST)
+def _tanh64(x):
+    """Branchless ``math.tanh(x)`` for float64 (within 2 ulp; signed zeros, +-inf -> +-1, NaN -> NaN).
 
     ``|x| < 0.625``: Cephes rational; else ``1 - 2 / (exp(2|x|) + 1)`` with ``2|x|`` capped at 40
     (``tanh(20) == 1.0`` in double). Both branches share one division.
@@ -142,6 +236,7 @@ _PIO2_1 = 1.57079632673412561417e+00
 _PIO2_2 = 6.07710050630396597660e-11
 _PIO2_3 = 2.02226624871116645580e-21
 _PIO2_3T = 8.47842766036889956997e-32    # pi/2 - (_PIO2_1 + _PIO2_2 + _PIO2_3)
+_PIO2_1F, _PIO2_2F, _PIO2_3F = 1.5703125, 4.837512969970703125e-4, 7.54978995489188216e-8   # float32's (Cephes sinf)
 _S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
 _S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
 _C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
@@ -155,16 +250,20 @@ def sincos(a):
 
     Cody-Waite reduction by ``k*pi/2`` (``k = round(2a/pi)``, pi/2 in four pieces) and the fdlibm polynomials.
     """
-    k = math.floor(a * _TWO_OVER_PI + 0.5)
-    r = (((a - k * _PIO2_1) - k * _PIO2_2) - k * _PIO2_3) - k * _PIO2_3T
+    one = like(a, 1.0)
+    k = math.floor(a * like(a, _TWO_OVER_PI) + like(a, 0.5))
+    kf = like(a, k)
+    r = (((a - kf * pick(a, _PIO2_1, _PIO2_1F)) - kf * pick(a, _PIO2_2, _PIO2_2F))
+         - kf * pick(a, _PIO2_3, _PIO2_3F)) - kf * pick(a, _PIO2_3T, 0.0)
     z = r * r
     w = z * z
-    sr = _S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))
-    sn = r + r * z * (_S1 + z * sr)
-    cr = z * (_C1 + z * (_C2 + z * _C3)) + w * w * (_C4 + z * (_C5 + z * _C6))
-    hz = 0.5 * z
-    cw = 1.0 - hz
-    cs = cw + (((1.0 - cw) - hz) + z * cr)
+    sr = like(a, _S2) + z * (like(a, _S3) + z * (like(a, _S4) + z * (like(a, _S5) + z * like(a, _S6))))
+    sn = r + r * z * (like(a, _S1) + z * sr)
+    cr = (z * (like(a, _C1) + z * (like(a, _C2) + z * like(a, _C3)))
+          + w * w * (like(a, _C4) + z * (like(a, _C5) + z * like(a, _C6))))
+    hz = like(a, 0.5) * z
+    cw = one - hz
+    cs = cw + (((one - cw) - hz) + z * cr)
     quad = np.int64(k)
     odd = (quad & 1) != 0
     neg_sin = (quad & 2) != 0

@@ -24,7 +24,7 @@ import math
 
 from numba import njit
 
-from rovermarl.env.kernel.math import FAST, atan2
+from rovermarl.env.kernel.math import FAST, atan2, like
 
 REWARDS = ("final", "any_step", "best_step", "mean_step")   # env.reward; the kernel's code is the index
 FINAL, ANY_STEP, BEST_STEP, MEAN_STEP = range(4)
@@ -64,7 +64,8 @@ def reading(d, sensor_range, dn, bn, typ):
     ``(1, 0, 0)``; ``dn = d / range`` and ``bn = bearing / pi`` as the caller rounds them. A rover target passes
     ``typ = 0`` and keeps two numbers."""
     seen = d <= sensor_range
-    return (dn if seen else 1.0), (bn if seen else 0.0), (typ if seen else 0.0)
+    zero = like(dn, 0.0)
+    return (dn if seen else like(dn, 1.0)), (bn if seen else zero), (typ if seen else zero)
 
 
 @njit(inline="always", **FAST)
@@ -74,14 +75,15 @@ def bearing(dx, dy, c, s):
     ``atan2`` of the offset rotated into the rover frame equals ``wrap(atan2(dy, dx) - h)`` up to
     rounding. A zero offset reads as the world x axis (``atan2(0, 0) = 0``), as in the SPEC formula.
     """
-    zero = (dx == 0.0) & (dy == 0.0)
+    zero = (dx == like(dx, 0.0)) & (dy == like(dx, 0.0))
     xr = dx * c + dy * s
     yr = dy * c - dx * s
     ms = -s
     xr = c if zero else xr
     yr = ms if zero else yr
     b = atan2(yr, xr)
-    return -math.pi if b >= math.pi else b
+    pi = like(b, math.pi)
+    return -pi if b >= pi else b
 
 
 @njit(inline="always", **FAST)
@@ -95,5 +97,5 @@ def speed(a0, v_max, mode):
     """Distance moved for action ``a0`` in [-1, 1]: ``(a0 + 1) / 2 * v_max`` (``mode`` 0, ``env.speed=affine``) or
     ``max(a0, 0) * v_max`` (1, ``clip``: the rover stands still for every ``a0 <= 0``)."""
     if mode == 1:
-        return max(a0, 0.0) * v_max
-    return (a0 + 1.0) * 0.5 * v_max
+        return max(a0, like(a0, 0.0)) * v_max
+    return (a0 + like(a0, 1.0)) * like(a0, 0.5) * v_max

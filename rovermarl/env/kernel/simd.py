@@ -7,9 +7,9 @@ vector load of the row's episodes, one broadcast weight per unit and ``UNITS`` f
 
 Each (unit, episode) still adds its rows in index order, each as one fused multiply-add ``fma(x, w, h)``, which is
 what the FMA contraction of ``h + x * w`` (the kernel's ``FAST`` options) computes: the result is bit-identical to the
-plain loops (``tests/test_kernel_math.py``). LLVM splits the ``EPISODES``-wide vectors into the target's registers (one
-512-bit register or two 256-bit ones per unit). :func:`output_tile` does the same for the output layer's 2 units,
-whose inputs are the hidden units.
+plain loops (``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of episodes (:func:`lanes`: 8 float64 or
+16 float32); LLVM splits them into the target's registers (one 512-bit register or two 256-bit ones per unit).
+:func:`output_tile` does the same for the output layer's 2 units, whose inputs are the hidden units.
 """
 
 from __future__ import annotations
@@ -17,13 +17,23 @@ from __future__ import annotations
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
-UNITS = 4          # hidden units per tile (the output layer's tiles have its 2 units)
-EPISODES = 8       # episodes per tile: one vector per unit
+UNITS = 8          # hidden units per tile (the output layer's tiles have its 2 units)
+EPISODES = 8       # float64 episodes per tile: one 64-byte vector per unit (16 for float32)
 
 _I64 = ir.IntType(64)
-_VEC = ir.VectorType(ir.DoubleType(), EPISODES)
+
+
+def lanes(a) -> int:
+    """Episodes per tile for arrays of ``a``'s dtype: one 64-byte vector, 8 float64 or 16 float32."""
+    return 64 // a.itemsize
+
+
+@overload(lanes, inline="always")
+def _lanes(a):
+    n = 512 // a.dtype.bitwidth
+    return lambda a: n
 
 
 def _const(x: int) -> ir.Constant:
@@ -33,13 +43,18 @@ def _const(x: int) -> ir.Constant:
 def _tile(units: int):
     """An intrinsic ``tile(acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0)`` over ``units`` units: for each
     row ``k`` of ``rows[:nr]`` in order, ``acc[(u0 + j)*ep + e] += x[k*ne + q0 + e] * genome[w0 + k*wstride + j]``
-    for j < units and the ``EPISODES`` episodes e from ``e0``, in place. acc, x, genome float64 and rows int64 must
-    be contiguous, and the tile must lie inside them (the callers check)."""
+    for j < units and the :func:`lanes` episodes e from ``e0``, in place. acc, x, genome of one float dtype and rows
+    int64 must be contiguous, and the tile must lie inside them (the callers check)."""
 
     @intrinsic
     def tile(typingctx, acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0):
         i64 = types.int64
+        if not (acc.dtype == x.dtype == genome.dtype and isinstance(acc.dtype, types.Float)):
+            return None
         sig = types.void(acc, x, genome, rows, i64, i64, i64, i64, i64, i64, i64, i64)
+        width, bits = 512 // acc.dtype.bitwidth, acc.dtype.bitwidth
+        vec = ir.VectorType(ir.DoubleType() if bits == 64 else ir.FloatType(), width)
+        align = bits // 8
 
         def codegen(context, builder, signature, args):
             acc_a, x_a, genome_a, rows_a, nr, q0, ne, wstride, w0, u0, ep, e0 = args
@@ -48,12 +63,12 @@ def _tile(units: int):
             add, mul = builder.add, builder.mul
 
             def vector_at(base, offset):
-                return builder.bitcast(builder.gep(base, [offset]), _VEC.as_pointer())
+                return builder.bitcast(builder.gep(base, [offset]), vec.as_pointer())
 
-            fma = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VEC, [_VEC] * 3),
-                                                 f"llvm.fma.v{EPISODES}f64")
+            fma = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec] * 3),
+                                                 f"llvm.fma.v{width}f{bits}")
             slots = [vector_at(hp, add(mul(add(u0, _const(j)), ep), e0)) for j in range(units)]
-            start = [builder.load(s, align=8) for s in slots]
+            start = [builder.load(s, align=align) for s in slots]
             entry = builder.block
             loop = builder.append_basic_block("tile.loop")
             done = builder.append_basic_block("tile.done")
@@ -61,16 +76,16 @@ def _tile(units: int):
 
             builder.position_at_end(loop)                       # for r in range(nr): k = rows[r]
             r = builder.phi(_I64)
-            acc = [builder.phi(_VEC) for _ in range(units)]
+            acc = [builder.phi(vec) for _ in range(units)]
             k = builder.load(builder.gep(rp, [r]))
-            x = builder.load(vector_at(op, add(add(mul(k, ne), q0), e0)), align=8)
+            x = builder.load(vector_at(op, add(add(mul(k, ne), q0), e0)), align=align)
             row = add(mul(k, wstride), w0)
-            splat = ir.Constant(ir.VectorType(ir.IntType(32), EPISODES), [0] * EPISODES)
+            splat = ir.Constant(ir.VectorType(ir.IntType(32), width), [0] * width)
             nxt = []
             for j in range(units):
                 w = builder.load(builder.gep(gp, [add(row, _const(j))]))
-                w = builder.insert_element(ir.Constant(_VEC, ir.Undefined), w, ir.Constant(ir.IntType(32), 0))
-                w = builder.shuffle_vector(w, ir.Constant(_VEC, ir.Undefined), splat)
+                w = builder.insert_element(ir.Constant(vec, ir.Undefined), w, ir.Constant(ir.IntType(32), 0))
+                w = builder.shuffle_vector(w, ir.Constant(vec, ir.Undefined), splat)
                 nxt.append(builder.call(fma, [x, w, acc[j]]))
             r_next = add(r, _const(1))
             r.add_incoming(_const(0), entry)
@@ -83,12 +98,12 @@ def _tile(units: int):
             builder.position_at_end(done)
             final = []
             for j in range(units):
-                phi = builder.phi(_VEC)
+                phi = builder.phi(vec)
                 phi.add_incoming(start[j], entry)
                 phi.add_incoming(nxt[j], loop)
                 final.append(phi)
             for j in range(units):
-                builder.store(final[j], slots[j], align=8)
+                builder.store(final[j], slots[j], align=align)
             return context.get_dummy_value()
 
         return sig, codegen
@@ -103,16 +118,16 @@ _output = _tile(2)
 @njit(inline="always")
 def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0):
     """Add the rows ``rows[:nr]`` of the hidden layer to the tile of units ``u0 .. u0+UNITS-1`` and episodes
-    ``e0 .. e0+EPISODES-1``, in place: ``hid[u*ep + e] += obs[k*ne + q0 + e] * genome[k*hidden + u]`` for each row
-    ``k`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) float64, rows (D,) int64; the tile must lie
-    inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and ``e0 + EPISODES <= ep``), and every array must
-    be contiguous (the caller checks the genome's stride; the others are its own buffers)."""
+    ``e0 .. e0+lanes(hid)-1``, in place: ``hid[u*ep + e] += obs[k*ne + q0 + e] * genome[k*hidden + u]`` for each row
+    ``k`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) of one float dtype, rows (D,) int64; the
+    tile must lie inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and ``e0 + lanes <= ep``), and every
+    array must be contiguous (the caller checks the genome's stride; the others are its own buffers)."""
     _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, u0, u0, ep, e0)
 
 
 @njit(inline="always")
 def output_tile(pre, hid, genome, units, hidden, w0, ep, e0):
-    """Add the hidden units to the output layer's tile of episodes ``e0 .. e0+EPISODES-1``, in place:
+    """Add the hidden units to the output layer's tile of episodes ``e0 .. e0+lanes(pre)-1``, in place:
     ``pre[j*ep + e] += hid[u*ep + e] * genome[w0 + 2*u + j]`` for u = ``units[0] .. units[hidden-1]`` in order and
     j = 0, 1. pre (2*E,), hid (H*E,), genome (G,) contiguous; units (H,) int64 holds 0..H-1."""
     _output(pre, hid, genome, units, hidden, 0, ep, 2, w0, 0, ep, e0)

@@ -21,9 +21,9 @@ import math
 import numpy as np
 from numba import njit
 
-from rovermarl.env.kernel.math import FAST, sincos_all, tanh, wrap
+from rovermarl.env.kernel.math import FAST, like, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
-from rovermarl.env.kernel.simd import EPISODES, UNITS, hidden_tile, output_tile
+from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile
 
 U = np.uint64
 
@@ -50,13 +50,13 @@ def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
     d = 3 * poi_xy.shape[0] + 2 * n
     if xy.shape != (n_ep, n, 2) or out.shape != (n_ep, n, d):
         raise ValueError("sense: expected xy (E, N, 2), heading (E, N) and out (E, N, 3P + 2N)")
-    state = np.empty((5, ne))
+    state = np.empty((5, ne), dtype=xy.dtype)
     x, y, h, sin_h, cos_h = state[0], state[1], state[2], state[3], state[4]
     to_flat(xy[:, :, 0], x)
     to_flat(xy[:, :, 1], y)
     to_flat(heading, h)
     sincos_all(h, sin_h, cos_h)
-    obs = np.empty(d * ne)
+    obs = np.empty(d * ne, dtype=xy.dtype)
     sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
     for k in range(d):
         from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
@@ -78,11 +78,13 @@ def act(genomes, obs, hidden, out):
     ne = n * n_ep
     if genomes.shape != (n, (d + 3) * hidden + 2) or out.shape != (n_ep, n, 2):
         raise ValueError("act: expected genomes (N, (D + 3) H + 2), obs (E, N, D) and out (E, N, 2)")
-    flat = np.empty(d * ne)
+    flat = np.empty(d * ne, dtype=obs.dtype)
     for k in range(d):
         to_flat(obs[:, :, k], flat[k * ne:(k + 1) * ne])
-    a = np.empty((2, ne))
-    act_flat(genomes, flat, n_ep, hidden, np.empty(hidden * n_ep), np.empty(d, dtype=np.int64), a[0], a[1])
+    g = np.empty(genomes.shape, dtype=obs.dtype)            # the MLP runs in the observations' precision
+    g[:] = genomes
+    a = np.empty((2, ne), dtype=obs.dtype)
+    act_flat(g, flat, n_ep, hidden, np.empty(hidden * n_ep, dtype=obs.dtype), np.empty(d, dtype=np.int64), a[0], a[1])
     from_flat(a[0], out[:, :, 0])
     from_flat(a[1], out[:, :, 1])
 
@@ -103,7 +105,7 @@ def move(xy, heading, actions, v_max, w_max, speed_mode=0):
     ne = n * n_ep
     if xy.shape != (n_ep, n, 2) or actions.shape != (n_ep, n, 2):
         raise ValueError("move: expected xy (E, N, 2), heading (E, N) and actions (E, N, 2)")
-    state = np.empty((7, ne))
+    state = np.empty((7, ne), dtype=xy.dtype)
     x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     to_flat(xy[:, :, 0], x)
     to_flat(xy[:, :, 1], y)
@@ -170,8 +172,8 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
     ne = x.shape[0]
     ep = ne // n
     p = poi_xy.shape[0]
-    inv_pi = 1.0 / math.pi
-    inv_range = 1.0 / sensor_range
+    inv_pi = like(sensor_range, 1.0 / math.pi)
+    inv_range = like(sensor_range, 1.0) / sensor_range
     for j in range(p):
         px = poi_xy[j, 0]
         py = poi_xy[j, 1]
@@ -208,7 +210,7 @@ def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
     hid (H*E,) and rows (D,) int64 are scratch."""
     ne = a0.shape[0]
-    pre, units = np.empty(2 * n_ep), np.arange(hidden)                  # the output tiles' scratch and rows
+    pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)  # the output tiles' scratch and rows
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
         _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
@@ -252,22 +254,23 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
             hid[U(u * ep + e)] = b
     # Rows of obs that are zero in all E episodes (own rover slot, solo POI types, ...) add nothing:
     # skip them. Exact for finite weights (h + 0 * w == h, up to the sign of a zero h).
-    nr = 0
+    nr, zero = 0, like(genome[0], 0.0)
     for k in range(d):
         ok = U(k * ne + q0)
-        nz = obs[ok] != 0.0                          # most rows that are not zero are so in the first episode
+        nz = obs[ok] != zero                         # most rows that are not zero are so in the first episode
         if not nz:
             for e in range(1, ep):
-                nz |= obs[ok + U(e)] != 0.0
+                nz |= obs[ok + U(e)] != zero
         if nz:
             rows[nr] = k
             nr += 1
-    tiles = genome.strides[0] == 8                    # the tiles read the genome as contiguous memory
-    eb = ep - ep % EPISODES
+    tiles = genome.strides[0] == genome.itemsize      # the tiles read the genome as contiguous memory
+    width = lanes(hid)                                # episodes per tile: 8 float64 or 16 float32
+    eb = ep - ep % width
     # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
     hb = hidden - hidden % UNITS if tiles else 0
     for u0 in range(0, hb, UNITS):
-        for e0 in range(0, eb, EPISODES):
+        for e0 in range(0, eb, width):
             hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0)
     if hb < hidden or eb < ep:
         for r in range(nr):
@@ -287,7 +290,7 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
         pre[U(e)] = b0
         pre[U(ep + e)] = b1
     ob = eb if tiles else 0
-    for e0 in range(0, ob, EPISODES):                 # register tiles (simd.output_tile), then the rest
+    for e0 in range(0, ob, width):                    # register tiles (simd.output_tile), then the rest
         output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0)
     for u in range(hidden):
         w0 = genome[U(o_w2 + 2 * u)]
