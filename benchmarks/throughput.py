@@ -1,19 +1,20 @@
-"""Single-core throughput of the default world: the fused rollout kernel against its frozen copy at commit 4c4ae3c
-(``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``, the full generation loop (compiled, and CC11ES's Python loop:
-``compiled_over_python_loop``), and the plain numpy reference
-(``rovermarl.env.reference``). Prints one JSON line.
+"""Single-core throughput of the default world: the fused rollout kernel (float64, and float32 as under
+``env.dtype=float32``) against its frozen copy at commit 4c4ae3c (``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``,
+the full generation loop (compiled, and CC11ES's Python loop: ``compiled_over_python_loop``), and the plain numpy
+reference (``rovermarl.env.reference``). Prints one JSON line.
 
     python benchmarks/throughput.py [--setup solo] [--repeats 7] [--evals 3000] [--numpy-evals 150]
 
 The kernel and the old kernel get the same arguments (one team, the world's starts) and are checked bit for bit on
-``--check-teams`` random teams and starts (returns, trajectories, final positions: ``kernel_equals_old``). Their
-speeds are compared in ``--processes`` fresh processes, one after the other, loading the kernels in alternating order:
-where the JIT places the code alone moves a kernel's speed by a few percent, so ``old_copy`` (the old kernel's code
-loaded a second time) is timed as an A/A control (``old_copy_over_old``). In each repeat of each process the three run
-in rotating order in ``--chunks`` chunks, so that machine noise hits them alike; ``kernel_over_old`` is the median of
-the per-repeat ratios of rates (above 1: the new kernel is faster). ``World.evaluate``, the generation loop and the
-numpy reference are measured alternately in this process; the reference's per-episode returns are checked against the
-kernel's (``numpy_return_mismatches`` counts differing episodes).
+``--check-teams`` random teams and starts (returns, trajectories, final positions: ``kernel_equals_old``). Their speeds
+are compared in ``--processes`` fresh processes, one after the other, loading the kernels in alternating order: where
+the JIT places the code alone moves a kernel's speed by a few percent, so ``old_copy`` (the old kernel's code loaded a
+second time) is timed as an A/A control (``old_copy_over_old``). In each repeat of each process the four run in
+rotating order in ``--chunks`` chunks, so that machine noise hits them alike; ``kernel_over_old`` is the median of the
+per-repeat ratios of rates (above 1: the new kernel is faster). The float32 kernel (``new32``: the same code on the same
+team and starts cast to float32) runs in the same rotation: ``kernel32_over_old``. ``World.evaluate``, the generation
+loop and the numpy reference are measured alternately in this process; the reference's per-episode returns are checked
+against the kernel's (``numpy_return_mismatches`` counts differing episodes).
 
 ``stages_ns_per_agent_step`` times the rollout's stage loops alone (``sense_flat``, ``act_flat``, ``move_flat``)
 on the world's starting states, and ``mlp_fma_per_agent_step`` counts the multiply-adds of the MLP there (the
@@ -57,6 +58,14 @@ def kernel_inputs(world, seed: int = 0):
             float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
 
 
+def as_float32(args):
+    """The kernel's arguments as ``World.kernel_args`` gives them under ``env.dtype=float32`` (the genomes too)."""
+    f = np.float32
+    cast = [a.astype(f) if isinstance(a, np.ndarray) and a.dtype == np.float64 else a for a in args]
+    cast[6] = args[6]                                                   # value: the reward reads float64
+    return tuple(f(a) if isinstance(a, float) else a for a in cast)
+
+
 def with_modes(rollout, args):
     """The current kernel also takes ``speed_mode, reward_mode`` (the SPEC reading: 0, 0); 4c4ae3c's does not."""
     return args + (0, 0) if rollout is kernel.rollout else args
@@ -87,11 +96,13 @@ def kernel_seconds(rollout, args, n: int) -> np.ndarray:
 def kernel_worker(a) -> None:
     """One fresh process: load the kernels in ``--load-order``, then time them in rotating order; print JSON."""
     kernels = {"new": kernel.rollout, "old": old_kernel.rollout,
-               "old_copy": njit(**old_kernel._FAST)(old_kernel.rollout.py_func)}   # A/A: same code, other address
-    args = kernel_inputs(make_world(a.setup))
+               "old_copy": njit(**old_kernel._FAST)(old_kernel.rollout.py_func),  # A/A: same code, other address
+               "new32": kernel.rollout}
+    args64 = kernel_inputs(make_world(a.setup))
+    inputs = {name: as_float32(args64) if name == "new32" else args64 for name in kernels}
     order = a.load_order.split(",")
     for name in order:
-        run_kernel(kernels[name], args, record=False)                   # JIT cache load, in this order
+        run_kernel(kernels[name], inputs[name], record=False)           # JIT cache load, in this order
     per = max(1, a.evals // a.chunks)
     out = {name: [] for name in kernels}
     for r in range(a.repeats):
@@ -99,7 +110,7 @@ def kernel_worker(a) -> None:
         for c in range(a.chunks):
             shift = (r + c) % len(order)
             for name in order[shift:] + order[:shift]:
-                total[name] += kernel_seconds(kernels[name], args, per)
+                total[name] += kernel_seconds(kernels[name], inputs[name], per)
         for name in kernels:
             out[name].append((per * a.chunks / total[name]).tolist())        # [per CPU s, per wall s]
     print(json.dumps(out))
@@ -108,9 +119,9 @@ def kernel_worker(a) -> None:
 def kernel_vs_old(a) -> dict[str, np.ndarray]:
     """Rates (R, 2) [per CPU s, per wall s] of new, old and old_copy over ``--processes`` fresh processes (in turn,
     the load order alternating: code placement alone moves a kernel's speed by a few percent)."""
-    rates = {"new": [], "old": [], "old_copy": []}
+    rates = {"new": [], "old": [], "old_copy": [], "new32": []}
     for i in range(a.processes):
-        order = "new,old,old_copy" if i % 2 == 0 else "old_copy,old,new"
+        order = "new,old,old_copy,new32" if i % 2 == 0 else "new32,old_copy,old,new"
         cmd = [sys.executable, __file__, "--kernel-worker", "--load-order", order, "--setup", a.setup,
                "--repeats", str(a.repeats), "--evals", str(a.evals), "--chunks", str(a.chunks)]
         out = json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
@@ -252,7 +263,7 @@ def main() -> None:
     p.add_argument("--check-teams", type=int, default=20, help="random teams for the equality checks")
     p.add_argument("--processes", type=int, default=4, help="fresh processes for the kernel comparison")
     p.add_argument("--kernel-worker", action="store_true", help=argparse.SUPPRESS)
-    p.add_argument("--load-order", default="new,old,old_copy", help=argparse.SUPPRESS)
+    p.add_argument("--load-order", default="new,old,old_copy,new32", help=argparse.SUPPRESS)
     a = p.parse_args()
 
     if a.kernel_worker:
@@ -260,6 +271,7 @@ def main() -> None:
         return
     load_start = os.getloadavg()
     cfg = to_plain(compose_config(f"setup={a.setup}", f"k={a.k}"))
+    cfg32 = to_plain(compose_config(f"setup={a.setup}", f"k={a.k}", "env.dtype=float32"))
     world = make_world(a.setup)
     old_bad = old_mismatches(world, a.check_teams)
     numpy_bad = numpy_mismatches(world, a.check_teams)
@@ -268,14 +280,16 @@ def main() -> None:
     evaluate_rate(world, 50)                                 # warm-up
     loop_rate(cfg, 50)
     loop_rate(cfg, 50, "python")
+    loop_rate(cfg32, 50)
     numpy_rate(world, 5)
     stages = stage_profile(world, reps=max(1, a.evals) * world.steps // 4, repeats=a.repeats)
-    evaluate, loop, py_loop, numpy_ = [], [], [], []
+    evaluate, loop, py_loop, loop32, numpy_ = [], [], [], [], []
     for _ in range(a.repeats):                               # alternate so machine noise hits all alike
         evaluate.append(evaluate_rate(world, a.evals))
         numpy_.append(numpy_rate(world, a.numpy_evals))
         loop.append(loop_rate(cfg, a.evals))
         py_loop.append(loop_rate(cfg, a.evals, "python"))
+        loop32.append(loop_rate(cfg32, a.evals))
     med = statistics.median
     agent_steps = world.episodes * world.steps * world.n_rovers
     print(json.dumps({
@@ -288,6 +302,12 @@ def main() -> None:
         "kernel_over_old_per_process": [round(med(x), 4) for x in np.split(new / old, a.processes)],
         "kernel_over_old_runs": [round(x, 4) for x in new / old],
         "kernel_over_old_wall": round(med(rates["new"][:, 1] / rates["old"][:, 1]), 4),
+        "kernel32_evals_per_s": round(med(rates["new32"][:, 0]), 1),
+        "kernel32_over_old": round(med(rates["new32"][:, 0] / old), 4),
+        "kernel32_over_old_per_process": [round(med(x), 4) for x in np.split(rates["new32"][:, 0] / old,
+                                                                             a.processes)],
+        "kernel32_over_kernel": round(med(rates["new32"][:, 0] / new), 4),
+        "ns_per_agent_step_float32": round(1e9 / (med(rates["new32"][:, 0]) * agent_steps), 2),
         "old_copy_over_old": round(med(rates["old_copy"][:, 0] / old), 4),
         "old_copy_over_old_per_process": [round(med(x), 4) for x in np.split(rates["old_copy"][:, 0] / old,
                                                                              a.processes)],
@@ -302,6 +322,8 @@ def main() -> None:
         "loop_over_kernel": round(med(loop) / med(new), 3),
         "python_loop_team_evals_per_s": round(med(py_loop), 1),
         "compiled_over_python_loop": round(med(np.array(loop) / np.array(py_loop)), 3),
+        "loop_float32_team_evals_per_s": round(med(loop32), 1),
+        "loop_float32_over_loop": round(med(np.array(loop32) / np.array(loop)), 3),
         **stages,
         "numpy_team_evals_per_s": round(med(numpy_), 1),
         "kernel_over_numpy": round(med(new) / med(numpy_), 2),
