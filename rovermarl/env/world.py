@@ -210,8 +210,8 @@ class World:
 
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
-        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim) (libm rounding: ``kernel.sense_libm``;
-        the rollout's ``kernel.sense`` reads the same within a few ulp)."""
+        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim) (libm rounding: ``kernel.sense_libm``,
+        float64 under any ``env.dtype``; the rollout's ``kernel.sense`` reads the same within a few ulp)."""
         xy, heading = self._batch(xy, heading)
         out = np.empty(heading.shape + (self.obs_dim,))
         kernel.sense_libm(xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers),
@@ -289,15 +289,22 @@ class World:
         conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then the world's arrays and
         numbers, e.g. for a compiled loop that evaluates teams itself. Floats are in ``env.dtype`` (the genomes
         must be too)."""
-        f = np.dtype(self.dtype).type                      # env.dtype: the kernel's precision
-        xy0, h0 = (np.ascontiguousarray(a, dtype=f) for a in self._batch(*ic))
-        return (xy0, h0, self.poi_xy.astype(f, copy=False), self._type.astype(f, copy=False), self._coupling,
-                self._value, self.steps, self.hidden, f(self.sensor_range), f(self.obs_radius), f(self.v_max),
-                f(self.w_max), kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
+        return (*self._in_dtype(*self._batch(*ic)), *self._world_args())
+
+    def _in_dtype(self, *arrays):
+        """Checked float64 arrays in ``env.dtype``, the kernel's precision (no copy for float64)."""
+        return tuple(a.astype(self.dtype, copy=False) for a in arrays)
+
+    def _world_args(self) -> tuple:
+        """The world's arguments of the rollout after the initial conditions, floats in ``env.dtype``."""
+        f = np.dtype(self.dtype).type
+        return (*self._in_dtype(self.poi_xy, self._type), self._coupling, self._value, self.steps, self.hidden,
+                f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
+                kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
 
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(genomes.astype(self.dtype, copy=False), *self.kernel_args((xy0, h0)), returns, traj_xy,
-                       traj_heading, _NO_FINAL if final_xy is None else final_xy)
+        kernel.rollout(*self._in_dtype(genomes, xy0, h0), *self._world_args(), returns, traj_xy, traj_heading,
+                       _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
         genomes = np.ascontiguousarray(genomes, dtype=np.float64)
