@@ -3,6 +3,9 @@
 Each works in its argument's precision (float64, or float32 under ``env.dtype=float32``): numba types a float literal
 as float64, so the constants go through :func:`like` (and :func:`pick` where float32 needs a value of its own), which
 compile to the literal itself for float64 (the same code, bit for bit) and to a float32 constant for float32.
+:func:`tanh` and the core of :func:`atan2` are numba overloads that take a float32 formula of their own
+(:func:`_tanh32`, :func:`_atan32`: fewer operations, float32 accuracy) and the float64 one otherwise; they are compiled
+as functions that LLVM inlines (inlining them in numba's IR trips its SSA check).
 
 Branchless (selects only) so that LLVM vectorises the loops that inline them: numba 0.68 without SVML leaves calls
 to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py).
