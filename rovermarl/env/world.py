@@ -101,6 +101,12 @@ class World:
         c = np.array(self.coupling, dtype=np.float64)
         types = {"coupling": c - 1.0, "sign": np.where(c == 1, -1.0, 1.0), "value": self._value.copy()}
         object.__setattr__(self, "_type", types[self.poi_type])
+        f = np.dtype(self.dtype).type                              # env.dtype: the kernel's precision
+        object.__setattr__(self, "_float", f)
+        object.__setattr__(self, "_kernel_world", (         # the rollout's arguments after the initial conditions
+            self.poi_xy.astype(f), self._type.astype(f), self._coupling, self._value, self.steps, self.hidden,
+            f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
+            kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward)))
 
     @property
     def poi_sensor_type(self) -> np.ndarray:
@@ -289,21 +295,14 @@ class World:
         conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then the world's arrays and
         numbers, e.g. for a compiled loop that evaluates teams itself. Floats are in ``env.dtype`` (the genomes
         must be too)."""
-        return (*self._in_dtype(*self._batch(*ic)), *self._world_args())
+        return (*self._in_dtype(*self._batch(*ic)), *self._kernel_world)
 
     def _in_dtype(self, *arrays):
         """Checked float64 arrays in ``env.dtype``, the kernel's precision (no copy for float64)."""
-        return tuple(a.astype(self.dtype, copy=False) for a in arrays)
-
-    def _world_args(self) -> tuple:
-        """The world's arguments of the rollout after the initial conditions, floats in ``env.dtype``."""
-        f = np.dtype(self.dtype).type
-        return (*self._in_dtype(self.poi_xy, self._type), self._coupling, self._value, self.steps, self.hidden,
-                f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
-                kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward))
+        return tuple(a.astype(self._float, copy=False) for a in arrays)
 
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(*self._in_dtype(genomes, xy0, h0), *self._world_args(), returns, traj_xy, traj_heading,
+        kernel.rollout(*self._in_dtype(genomes, xy0, h0), *self._kernel_world, returns, traj_xy, traj_heading,
                        _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
