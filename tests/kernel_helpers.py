@@ -15,6 +15,13 @@ def atan2_array(y, x, out):
 
 
 @njit(**FAST)
+def atan2_ranged_array(y, x, out):
+    """out (M,) <- ``atan2(y, x, ranged=True)`` of y, x (M,), vectorised as in the kernel's sensing."""
+    for q in range(out.shape[0]):
+        out[q] = atan2(y[q], x[q], True)
+
+
+@njit(**FAST)
 def tanh_array(x, out):
     """out (M,) <- the kernel's :func:`tanh` of x (M,), in a vectorised loop as in the kernel."""
     for q in range(out.shape[0]):

@@ -5,11 +5,12 @@ import math
 
 import numpy as np
 import pytest
-from kernel_helpers import act_plain, atan2_array, tanh_array
+from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_array
 
 from rovermarl import make_world
 from rovermarl.env import kernel
 from rovermarl.env.kernel import rules, stages
+from rovermarl.env.kernel.math import RANGED_MAX, RANGED_MIN
 
 RNG = np.random.default_rng(12345)
 N = 100_000
@@ -93,6 +94,55 @@ def test_bearing_wraps_to_minus_pi_and_handles_zero_offset():
     b = kernel.bearing(-math.cos(h), -math.sin(h), c, s)        # straight behind: pi, read as -pi
     assert -math.pi <= b < -math.pi + 1e-15
     assert kernel.bearing(0.0, 0.0, c, s) == pytest.approx(-h, abs=1e-15)   # atan2(0, 0) - h
+
+
+@pytest.mark.parametrize("dtype, lo, hi", [(np.float64, 2.0 ** -800, 2.0 ** 800), (np.float32, 2.0 ** -60, 2.0 ** 60)])
+def test_ranged_atan2_gives_the_general_bits_where_it_promises(dtype, lo, hi):
+    """atan2(ranged=True) leaves out the scaling, equal-magnitude and NaN cases: inside its promise (finite,
+    max(|x|, |y|) in [RANGED_MIN, RANGED_MAX]; float32 [2^-60, 2^60]) it gives atan2's bits, zeros and the
+    diagonals included."""
+    y, x = atan2_cases()
+    with np.errstate(over="ignore", under="ignore"):
+        y, x = y.astype(dtype), x.astype(dtype)
+    edge = np.array([lo, hi, -lo, -hi, 1.0, -1.0, 0.0, -0.0], dtype=dtype)
+    ey, ex = (a.ravel() for a in np.meshgrid(edge, edge))
+    y, x = np.concatenate([y, ey, x[:1000]]), np.concatenate([x, ex, -x[:1000]])    # exact diagonals too
+    big = np.maximum(np.abs(x.astype(float)), np.abs(y.astype(float)))
+    keep = (big >= lo) & (big <= hi)
+    y, x = y[keep], x[keep]
+    general, ranged = np.empty_like(y), np.empty_like(y)
+    atan2_array(y, x, general)
+    atan2_ranged_array(y, x, ranged)
+    assert y.size > N and np.array_equal(general.view(np.uint8), ranged.view(np.uint8))
+    assert dtype == np.float32 or (RANGED_MIN, RANGED_MAX) == (lo, hi)
+
+
+def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
+    """sense_flat's two paths give the same bits on ordinary states; states outside stages.in_range (a coordinate
+    of 1e-300, a NaN heading) take the general path."""
+    world = make_world("duo")
+    n, e = world.n_rovers, world.episodes
+    rng = np.random.default_rng(5)
+    args = (n, world.poi_xy, world._type, world.sensor_range)
+    for trial in range(6):
+        x, y = rng.uniform(-30, 30, (2, n * e))
+        h = rng.uniform(-4, 4, n * e)
+        x[:3] = y[:3] = 0.0                                           # rovers on the origin and on each other
+        x[5], y[5] = world.poi_xy[0]                                  # a rover on a POI
+        if trial == 4:
+            x[7] = 1e-300
+        if trial == 5:
+            h[9] = math.nan
+        s, c = np.empty_like(h), np.empty_like(h)
+        kernel.sincos_all(h, s, c)
+        got, general, ranged = (np.empty(world.obs_dim * n * e) for _ in range(3))
+        stages.sense_flat(x, y, s, c, *args, got)
+        stages._sense_rows(x, y, s, c, *args, general, False)
+        stages._sense_rows(x, y, s, c, *args, ranged, True)
+        assert stages.in_range(x, y, s, c, world.poi_xy) == (trial < 4)
+        assert same_bits(got, general)
+        if trial < 4:
+            assert same_bits(got, ranged)
 
 
 

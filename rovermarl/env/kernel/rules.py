@@ -69,11 +69,13 @@ def reading(d, sensor_range, dn, bn, typ):
 
 
 @njit(inline="always", **FAST)
-def bearing(dx, dy, c, s):
+def bearing(dx, dy, c, s, ranged=False):
     """Bearing in [-pi, pi) of world offset (dx, dy) seen by a rover with heading h, c = cos h, s = sin h.
 
     ``atan2`` of the offset rotated into the rover frame equals ``wrap(atan2(dy, dx) - h)`` up to
     rounding. A zero offset reads as the world x axis (``atan2(0, 0) = 0``), as in the SPEC formula.
+    ``ranged``: passed on to :func:`~rovermarl.env.kernel.math.atan2` (the caller has checked its promise, as
+    ``stages.sense_flat`` does with ``stages.in_range``).
     """
     zero = (dx == like(dx, 0.0)) & (dy == like(dx, 0.0))
     xr = dx * c + dy * s
@@ -81,7 +83,7 @@ def bearing(dx, dy, c, s):
     ms = -s
     xr = c if zero else xr
     yr = ms if zero else yr
-    b = atan2(yr, xr)
+    b = atan2(yr, xr, ranged)
     pi = like(b, math.pi)
     return -pi if b >= pi else b
 

@@ -2,8 +2,9 @@
 
 numba's loop vectoriser only vectorises innermost loops, so a hidden unit's sum over the input rows, a chain of
 dependent multiply-adds, goes through memory once per pass over the episodes. :func:`hidden_tile` keeps a tile of
-``UNITS`` hidden units x ``EPISODES`` episodes in vector registers for the whole sum instead: per input row, one
-vector load of the row's episodes, one broadcast weight per unit and ``UNITS`` fused multiply-adds.
+``UNITS`` hidden units x ``EPISODES`` episodes in vector registers for the whole sum instead: its sums start from
+the units' biases, broadcast into registers, and per input row take one vector load of the row's episodes, one
+broadcast weight per unit and ``UNITS`` fused multiply-adds.
 
 Each (unit, episode) still adds its rows in index order, each as one fused multiply-add ``fma(x, w, h)``, which is
 what the FMA contraction of ``h + x * w`` (the kernel's ``FAST`` options) computes: the result is bit-identical to the
@@ -41,23 +42,24 @@ def _const(x: int) -> ir.Constant:
 
 
 def _tile(units: int):
-    """An intrinsic ``tile(acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0)`` over ``units`` units: for each
-    row ``k`` of ``rows[:nr]`` in order, ``acc[(u0 + j)*ep + e] += x[k*ne + q0 + e] * genome[w0 + k*wstride + j]``
-    for j < units and the :func:`lanes` episodes e from ``e0``, in place. acc, x, genome of one float dtype and rows
-    int64 must be contiguous, and the tile must lie inside them (the callers check)."""
+    """An intrinsic ``tile(acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0, b0)`` over ``units`` units:
+    ``acc[(u0 + j)*ep + e] = genome[b0 + j]`` plus, for each row ``k`` of ``rows[:nr]`` in order,
+    ``x[k*ne + q0 + e] * genome[w0 + k*wstride + j]``, for j < units and the :func:`lanes` episodes e from ``e0``
+    (the sums start from the biases in registers). acc, x, genome of one float dtype and rows int64 must be
+    contiguous, and the tile must lie inside them (the callers check)."""
 
     @intrinsic
-    def tile(typingctx, acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0):
+    def tile(typingctx, acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0, b0):
         i64 = types.int64
         if not (acc.dtype == x.dtype == genome.dtype and isinstance(acc.dtype, types.Float)):
             return None
-        sig = types.void(acc, x, genome, rows, i64, i64, i64, i64, i64, i64, i64, i64)
+        sig = types.void(acc, x, genome, rows, i64, i64, i64, i64, i64, i64, i64, i64, i64)
         width, bits = 512 // acc.dtype.bitwidth, acc.dtype.bitwidth
         vec = ir.VectorType(ir.DoubleType() if bits == 64 else ir.FloatType(), width)
         align = bits // 8
 
         def codegen(context, builder, signature, args):
-            acc_a, x_a, genome_a, rows_a, nr, q0, ne, wstride, w0, u0, ep, e0 = args
+            acc_a, x_a, genome_a, rows_a, nr, q0, ne, wstride, w0, u0, ep, e0, b0 = args
             hp, op, gp, rp = (cgutils.create_struct_proxy(t)(context, builder, value=v).data
                               for t, v in zip(signature.args[:4], (acc_a, x_a, genome_a, rows_a), strict=True))
             add, mul = builder.add, builder.mul
@@ -68,7 +70,14 @@ def _tile(units: int):
             fma = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vec, [vec] * 3),
                                                  f"llvm.fma.v{width}f{bits}")
             slots = [vector_at(hp, add(mul(add(u0, _const(j)), ep), e0)) for j in range(units)]
-            start = [builder.load(s, align=align) for s in slots]
+            splat = ir.Constant(ir.VectorType(ir.IntType(32), width), [0] * width)
+
+            def broadcast(offset):                  # genome[offset] in every lane
+                w = builder.insert_element(ir.Constant(vec, ir.Undefined), builder.load(builder.gep(gp, [offset])),
+                                           ir.Constant(ir.IntType(32), 0))
+                return builder.shuffle_vector(w, ir.Constant(vec, ir.Undefined), splat)
+
+            start = [broadcast(add(b0, _const(j))) for j in range(units)]
             entry = builder.block
             loop = builder.append_basic_block("tile.loop")
             done = builder.append_basic_block("tile.done")
@@ -80,13 +89,7 @@ def _tile(units: int):
             k = builder.load(builder.gep(rp, [r]))
             x = builder.load(vector_at(op, add(add(mul(k, ne), q0), e0)), align=align)
             row = add(mul(k, wstride), w0)
-            splat = ir.Constant(ir.VectorType(ir.IntType(32), width), [0] * width)
-            nxt = []
-            for j in range(units):
-                w = builder.load(builder.gep(gp, [add(row, _const(j))]))
-                w = builder.insert_element(ir.Constant(vec, ir.Undefined), w, ir.Constant(ir.IntType(32), 0))
-                w = builder.shuffle_vector(w, ir.Constant(vec, ir.Undefined), splat)
-                nxt.append(builder.call(fma, [x, w, acc[j]]))
+            nxt = [builder.call(fma, [x, broadcast(add(row, _const(j))), acc[j]]) for j in range(units)]
             r_next = add(r, _const(1))
             r.add_incoming(_const(0), entry)
             r.add_incoming(r_next, loop)
@@ -116,18 +119,19 @@ _output = _tile(2)
 
 
 @njit(inline="always")
-def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0):
-    """Add the rows ``rows[:nr]`` of the hidden layer to the tile of units ``u0 .. u0+UNITS-1`` and episodes
-    ``e0 .. e0+lanes(hid)-1``, in place: ``hid[u*ep + e] += obs[k*ne + q0 + e] * genome[k*hidden + u]`` for each row
-    ``k`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) of one float dtype, rows (D,) int64; the
-    tile must lie inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and ``e0 + lanes <= ep``), and every
-    array must be contiguous (the caller checks the genome's stride; the others are its own buffers)."""
-    _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, u0, u0, ep, e0)
+def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, b0):
+    """The hidden layer's sums for the tile of units ``u0 .. u0+UNITS-1`` and episodes ``e0 .. e0+lanes(hid)-1``:
+    ``hid[u*ep + e] = genome[b0 + u] + obs[k*ne + q0 + e] * genome[k*hidden + u] + ...`` over the rows ``k`` of
+    ``rows[:nr]`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) of one float dtype, rows (D,)
+    int64; the tile must lie inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and
+    ``e0 + lanes <= ep``), and every array must be contiguous (the caller checks the genome's stride; the others
+    are its own buffers)."""
+    _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, u0, u0, ep, e0, b0 + u0)
 
 
 @njit(inline="always")
-def output_tile(pre, hid, genome, units, hidden, w0, ep, e0):
-    """Add the hidden units to the output layer's tile of episodes ``e0 .. e0+lanes(pre)-1``, in place:
-    ``pre[j*ep + e] += hid[u*ep + e] * genome[w0 + 2*u + j]`` for u = ``units[0] .. units[hidden-1]`` in order and
-    j = 0, 1. pre (2*E,), hid (H*E,), genome (G,) contiguous; units (H,) int64 holds 0..H-1."""
-    _output(pre, hid, genome, units, hidden, 0, ep, 2, w0, 0, ep, e0)
+def output_tile(pre, hid, genome, units, hidden, w0, ep, e0, b0):
+    """The output layer's sums for the tile of episodes ``e0 .. e0+lanes(pre)-1``: ``pre[j*ep + e] = genome[b0 + j]
+    + hid[u*ep + e] * genome[w0 + 2*u + j] + ...`` for u = ``units[0] .. units[hidden-1]`` in order and j = 0, 1.
+    pre (2*E,), hid (H*E,), genome (G,) contiguous; units (H,) int64 holds 0..H-1."""
+    _output(pre, hid, genome, units, hidden, 0, ep, 2, w0, 0, ep, e0, b0)

@@ -21,7 +21,7 @@ import math
 import numpy as np
 from numba import njit
 
-from rovermarl.env.kernel.math import FAST, like, sincos_all, tanh, wrap
+from rovermarl.env.kernel.math import FAST, like, pick, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
 from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile
 
@@ -168,7 +168,47 @@ def from_flat(v, out):
 
 @njit(**FAST)
 def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
-    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major."""
+    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major.
+
+    Where :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the
+    ranged ``atan2`` (the same bits with fewer operations), else the general one."""
+    if in_range(x, y, sin_h, cos_h, poi_xy):
+        _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, True)
+    else:
+        _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, False)
+
+
+@njit(inline="always", **FAST)
+def in_range(x, y, sin_h, cos_h, poi_xy):
+    """True when the bearings of these rovers and POIs meet the promise of ``atan2(ranged=True)``: every
+    coordinate is 0 or of magnitude in [2^-700, 2^700) (float32: [2^-30, 2^30)), and every (cos, sin) has both
+    magnitudes <= 1 and one >= 1/2. Then a nonzero offset is at least 2^-752 (2^-53) long, the rover frame keeps
+    at least half of it and ``max(|xr|, |yr|)`` lies in ``[RANGED_MIN, RANGED_MAX]``; a zero offset reads
+    (cos, -sin). x, y, sin_h, cos_h (M,), poi_xy (P, 2)."""
+    lo, hi = pick(x[0], 2.0 ** -700, 2.0 ** -30), pick(x[0], 2.0 ** 700, 2.0 ** 30)
+    bad = False
+    for q in range(x.shape[0]):
+        bad |= _off(x[q], lo, hi) | _off(y[q], lo, hi) | _off_unit(cos_h[q], sin_h[q])
+    for j in range(poi_xy.shape[0]):
+        bad |= _off(poi_xy[j, 0], lo, hi) | _off(poi_xy[j, 1], lo, hi)
+    return not bad
+
+
+@njit(inline="always")
+def _off(v, lo, hi):
+    a = abs(v)
+    return ((a > like(v, 0.0)) & (a < lo)) | (not a < hi)          # NaN too
+
+
+@njit(inline="always")
+def _off_unit(c, s):
+    ac, as_ = abs(c), abs(s)
+    return (not ac <= like(c, 1.0)) | (not as_ <= like(c, 1.0)) | (not max(ac, as_) >= like(c, 0.5))
+
+
+@njit(inline="always", **FAST)
+def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, ranged):
+    """The loops of :func:`sense_flat`; ``ranged`` (a constant at each call) goes to :func:`bearing`."""
     ne = x.shape[0]
     ep = ne // n
     p = poi_xy.shape[0]
@@ -183,7 +223,7 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
             dx = px - x[q]
             dy = py - y[q]
             d = math.sqrt(dx * dx + dy * dy)
-            b = bearing(dx, dy, cos_h[q], sin_h[q])
+            b = bearing(dx, dy, cos_h[q], sin_h[q], ranged)
             obs[o + U(q)], obs[o + U(ne + q)], obs[o + U(2 * ne + q)] = reading(
                 d, sensor_range, d * inv_range, b * inv_pi, typ)
     for m in range(n):
@@ -201,7 +241,7 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
                 dx = x[qm + U(e)] - x[q]
                 dy = y[qm + U(e)] - y[q]
                 d = math.sqrt(dx * dx + dy * dy)
-                b = bearing(dx, dy, cos_h[q], sin_h[q])
+                b = bearing(dx, dy, cos_h[q], sin_h[q], ranged)
                 obs[o + q], obs[o + U(ne) + q], _ = reading(d, sensor_range, d * inv_range, b * inv_pi, 0.0)
 
 
@@ -248,10 +288,6 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
     o_b1 = d * hidden
     o_w2 = o_b1 + hidden
     o_b2 = o_w2 + 2 * hidden
-    for u in range(hidden):
-        b = genome[U(o_b1 + u)]
-        for e in range(ep):
-            hid[U(u * ep + e)] = b
     # Rows of obs that are zero in all E episodes (own rover slot, solo POI types, ...) add nothing:
     # skip them. Exact for finite weights (h + 0 * w == h, up to the sign of a zero h).
     nr, zero = 0, like(genome[0], 0.0)
@@ -267,12 +303,17 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
     tiles = genome.strides[0] == genome.itemsize      # the tiles read the genome as contiguous memory
     width = lanes(hid)                                # episodes per tile: 8 float64 or 16 float32
     eb = ep - ep % width
-    # -- the hidden layer's multiply-adds: register tiles (simd.hidden_tile), then what the tiles leave --
     hb = hidden - hidden % UNITS if tiles else 0
+    ob = eb if tiles else 0
+    # -- the hidden layer's sums: register tiles from the biases (simd.hidden_tile), then what the tiles leave --
     for u0 in range(0, hb, UNITS):
         for e0 in range(0, eb, width):
-            hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0)
+            hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, o_b1)
     if hb < hidden or eb < ep:
+        for u in range(hidden):
+            b = genome[U(o_b1 + u)]
+            for e in range(eb if u < hb else 0, ep):
+                hid[U(u * ep + e)] = b
         for r in range(nr):
             k = rows[r]
             ok = U(k * ne + q0)
@@ -284,21 +325,21 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
     # -- the hidden layer's tanh, the output layer --
     for v in range(hidden * ep):
         hid[v] = tanh(hid[v])
-    b0 = genome[U(o_b2)]
-    b1 = genome[U(o_b2 + 1)]
-    for e in range(ep):
-        pre[U(e)] = b0
-        pre[U(ep + e)] = b1
-    ob = eb if tiles else 0
-    for e0 in range(0, ob, width):                    # register tiles (simd.output_tile), then the rest
-        output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0)
-    for u in range(hidden):
-        w0 = genome[U(o_w2 + 2 * u)]
-        w1 = genome[U(o_w2 + 2 * u + 1)]
-        ou = U(u * ep)
+    for e0 in range(0, ob, width):                    # register tiles from the biases (simd.output_tile) ...
+        output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
+    if ob < ep:                                       # ... then the rest
+        b0 = genome[U(o_b2)]
+        b1 = genome[U(o_b2 + 1)]
         for e in range(ob, ep):
-            pre[U(e)] += hid[ou + U(e)] * w0
-            pre[U(ep + e)] += hid[ou + U(e)] * w1
+            pre[U(e)] = b0
+            pre[U(ep + e)] = b1
+        for u in range(hidden):
+            w0 = genome[U(o_w2 + 2 * u)]
+            w1 = genome[U(o_w2 + 2 * u + 1)]
+            ou = U(u * ep)
+            for e in range(ob, ep):
+                pre[U(e)] += hid[ou + U(e)] * w0
+                pre[U(ep + e)] += hid[ou + U(e)] * w1
     for e in range(ep):
         out0[e] = pre[U(e)]
         out1[e] = pre[U(ep + e)]
