@@ -32,26 +32,39 @@ from rovermarl import make_world
 from rovermarl.env.kernel import math as kmath
 from rovermarl.env.kernel import simd
 from rovermarl.env.kernel.math import FAST, sincos_all
-from rovermarl.env.kernel.stages import _mlp, sense_flat
+from rovermarl.env.kernel.stages import _mlp, _squash, sense_flat
 
-SPLIT = "    # -- the hidden layer's multiply-adds"    # the kernel's hidden-layer sums start here ...
+SPLIT = "    # -- the hidden layer's sums"             # the kernel's hidden-layer sums start here ...
 RESUME = "    # -- the hidden layer's tanh"             # ... and end here
+SQUASH = """    if finite:
+        _squash(hid[:hidden * ep], True)
+    else:
+        _squash(hid[:hidden * ep], False)
+"""                                                    # the kernel's hidden tanh
+BIASES = """    for u in range(hidden):
+        b = genome[U(o_b1 + u)]
+        for e in range(ep):
+            hid[U(u * ep + e)] = b
+"""                                                    # the sums' start, where the kernel's tiles do not give it
 
 
 def kernel_parts() -> tuple[str, str, str]:
     """The kernel's ``_mlp`` source (from ``def``) in three: before its hidden-layer sums, the sums, the rest."""
     source = inspect.getsource(_mlp.py_func)
-    if SPLIT not in source or RESUME not in source or "hid[v] = tanh(hid[v])" not in source:
+    if SPLIT not in source or RESUME not in source or SQUASH not in source:
         raise RuntimeError("the kernel's _mlp changed shape: update benchmarks/mlp_blocking.py")
     source = source[source.index("def _mlp("):]
     a, b = source.index(SPLIT), source.index(RESUME)
     return source[:a], source[a:b], source[b:]
 
 
-def kernel_source(sums: bool = True, squash: str = "tanh(hid[v])") -> str:
-    """The kernel's ``_mlp``, without its hidden-layer sums unless ``sums``, with ``squash`` for the hidden tanh."""
+def kernel_source(sums: bool = True, squash: str | None = None) -> str:
+    """The kernel's ``_mlp``; without its hidden-layer sums (the biases only) unless ``sums``; with ``hid[v] =
+    squash`` for the hidden tanh if given."""
     head, middle, tail = kernel_parts()
-    return head + (middle if sums else "") + tail.replace("hid[v] = tanh(hid[v])", f"hid[v] = {squash}")
+    if squash is not None:
+        tail = tail.replace(SQUASH, f"    for v in range(hidden * ep):\n        hid[v] = {squash}\n")
+    return head + (middle if sums else BIASES) + tail
 
 
 def chain(acc: str, rows: int, weight) -> str:
@@ -66,8 +79,8 @@ def variant_source(rows: int, units: int) -> str:
     the episodes (loops that numba's vectoriser handles), then the remaining rows one by one; the rest (biases,
     zero-row scan, tanh, output layer) is the kernel's own code."""
     head, _, tail = kernel_parts()
-    lines = [head.rstrip("\n"), f"    n4 = nr - nr % {rows}", f"    hb = hidden - hidden % {units}",
-             f"    for r in range(0, n4, {rows}):"]
+    lines = [head.rstrip("\n"), BIASES.rstrip("\n"), f"    n4 = nr - nr % {rows}",
+             f"    hb = hidden - hidden % {units}", f"    for r in range(0, n4, {rows}):"]
     for i in range(rows):
         lines += [f"        o{i} = U(rows[r + {i}] * ne + q0)", f"        g{i} = U(rows[r + {i}] * hidden)"]
     lines.append(f"        for u in range(0, hb, {units}):")
@@ -90,7 +103,7 @@ def variant_source(rows: int, units: int) -> str:
 def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
     namespace = {"U": np.uint64, "tanh": kmath.tanh, "like": kmath.like, "hidden_tile": simd.hidden_tile,
-                 "output_tile": simd.output_tile, "UNITS": simd.UNITS, "lanes": simd.lanes}
+                 "output_tile": simd.output_tile, "UNITS": simd.UNITS, "lanes": simd.lanes, "_squash": _squash}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
     return njit(**options)(namespace["_mlp"])
@@ -106,11 +119,12 @@ def team_loop(mlp):
             pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
-                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep],
+                    True)
             for q in range(ne):
-                a0[q] = kmath.tanh(a0[q])
+                a0[q] = kmath.tanh(a0[q], True)
             for q in range(ne):
-                a1[q] = kmath.tanh(a1[q])
+                a1[q] = kmath.tanh(a1[q], True)
     return loop
 
 

@@ -28,6 +28,13 @@ def tanh_array(x, out):
         out[q] = tanh(x[q])
 
 
+@njit(**FAST)
+def tanh_finite_array(x, out):
+    """out (M,) <- ``tanh(x, finite=True)`` of x (M,), vectorised as in the kernel's MLP."""
+    for q in range(out.shape[0]):
+        out[q] = tanh(x[q], True)
+
+
 @njit(cache=True)
 def act_libm(genome, obs, hidden, h_buf):
     """MLP forward for one rover with libm tanh: genome (G,), obs (D,) -> (a0, a1); h_buf (H,) scratch."""

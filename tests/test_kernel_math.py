@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_array
+from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_array, tanh_finite_array
 
 from rovermarl import make_world
 from rovermarl.env import kernel
@@ -115,6 +115,30 @@ def test_ranged_atan2_gives_the_general_bits_where_it_promises(dtype, lo, hi):
     atan2_ranged_array(y, x, ranged)
     assert y.size > N and np.array_equal(general.view(np.uint8), ranged.view(np.uint8))
     assert dtype == np.float32 or (RANGED_MIN, RANGED_MAX) == (lo, hi)
+
+
+def test_finite_tanh_and_act_give_the_general_bits():
+    """tanh(finite=True) leaves out the NaN case only: the same bits on every finite input; act_flat's finite path
+    gives the general path's actions; mlp_finite refuses what could make a sum overflow or a reading NaN."""
+    x = np.concatenate([RNG.normal(0, 3, N), RNG.normal(0, 30, N), RNG.normal(0, 0.3, N), EDGE[:-2], [0.625, 19.06]])
+    general, finite = np.empty_like(x), np.empty_like(x)
+    tanh_array(x, general)
+    tanh_finite_array(x, finite)
+    assert np.array_equal(general.view(np.int64), finite.view(np.int64))
+    world = make_world("solo")
+    n, e, d = world.n_rovers, world.episodes, world.obs_dim
+    obs = RNG.uniform(-1, 1, d * n * e)
+    obs[:n * e] = 0.0                                                   # a zero row, skipped
+    genomes = RNG.uniform(-2, 2, (n, world.n_params)) * 10.0 ** RNG.integers(-3, 4, (n, 1))
+    acts = [[np.empty(n * e), np.empty(n * e)] for _ in range(2)]
+    for flag, (a0, a1) in zip((False, True), acts, strict=True):
+        stages.act_flat(genomes, obs, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1, flag)
+    assert same_bits(acts[0][0], acts[1][0]) and same_bits(acts[0][1], acts[1][1])
+    r = float(world.sensor_range)
+    assert stages.mlp_finite(genomes, world._type, r)
+    assert not stages.mlp_finite(genomes * np.inf, world._type, r) and not stages.mlp_finite(genomes, world._type, 0.0)
+    assert not stages.mlp_finite(genomes, world._type + 2.0 ** 200, r)
+    assert not stages.mlp_finite(np.where(genomes > 1, np.nan, genomes), world._type, r)
 
 
 def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():

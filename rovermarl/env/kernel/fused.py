@@ -9,7 +9,7 @@ from numba import njit
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.reward import fold, reward, settle
 from rovermarl.env.kernel.rules import BEST_STEP, FINAL
-from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
+from rovermarl.env.kernel.stages import act_flat, from_flat, mlp_finite, move_flat, sense_flat, to_flat
 
 
 @njit(**FAST)
@@ -45,14 +45,15 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
         traj_xy[:, 0] = xy0
         traj_heading[:, 0] = heading0
     sincos_all(heading, sin_h, cos_h)
+    finite = mlp_finite(genomes, poi_type, sensor_range)   # with each step's in_range: the MLP's sums are finite
     xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
     per_step = reward_mode != FINAL
     p = poi_xy.shape[0] if per_step else 0
     count, peak = np.empty((n_ep, p), dtype=np.int64), np.zeros((n_ep, p), dtype=np.int64)
     step, acc = np.empty(n_ep), np.full(n_ep, -np.inf if reward_mode == BEST_STEP else 0.0)
     for t in range(steps):
-        sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
-        act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1)
+        ranged = sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
+        act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1, finite and ranged)
         move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
         if record:
             from_flat(x, traj_xy[:, t + 1, :, 0])

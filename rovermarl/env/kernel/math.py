@@ -18,8 +18,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from llvmlite import ir
 from numba import njit, types
-from numba.extending import overload
+from numba.extending import intrinsic, overload
 
 TWO_PI = 2.0 * math.pi
 FAST = {"cache": True, "fastmath": {"contract"}, "error_model": "numpy"}
@@ -169,8 +170,9 @@ _TQ0, _TQ1, _TQ2 = 1.12811678491632931402e2, 2.23548839060100448583e3, 4.8440630
 @njit(inline="always", **FAST)
 def _exp_pos(w):
     """exp(w) for 0 <= w <= 40: ``2^n * exp(r)``, ``|r| <= ln2/2``, Taylor degree 13 (error < 1e-17)."""
-    n = math.floor(w * _LOG2E + 0.5)
-    r = (w - n * _LN2_HI) - n * _LN2_LO
+    n = np.int64(w * _LOG2E + 0.5)                       # truncation: floor, as the argument is >= 0.5
+    nf = float(n)
+    r = (w - nf * _LN2_HI) - nf * _LN2_LO
     p = 1.0 / 6227020800.0
     p = p * r + 1.0 / 479001600.0
     p = p * r + 1.0 / 39916800.0
@@ -185,17 +187,32 @@ def _exp_pos(w):
     p = p * r + 0.5
     p = p * r + 1.0
     p = p * r + 1.0
-    return p * float(np.int64(1) << np.int64(n))       # 2^n exactly, n <= 58
+    return p * _pow2(n)                                  # 2^n exactly, 0 <= n <= 58
 
 
-def tanh(x):
+@intrinsic
+def _pow2(typingctx, n):
+    """2.0 ** n for an int64 n with -1023 < n < 1024, built from its bits (no conversion)."""
+    if n != types.int64:
+        return None
+
+    def codegen(context, builder, signature, args):
+        i64 = ir.IntType(64)
+        bits = builder.shl(builder.add(args[0], ir.Constant(i64, 1023)), ir.Constant(i64, 52))
+        return builder.bitcast(bits, ir.DoubleType())
+
+    return types.float64(types.int64), codegen
+
+
+def tanh(x, finite=False):
     """Branchless ``math.tanh(x)`` in the kernel (:func:`_tanh64`; float32: :func:`_tanh32`); ``math.tanh`` from
-    Python."""
+    Python. ``finite=True`` (a constant at the call) promises a finite x: float64 then leaves out the NaN case,
+    the same bits with fewer operations."""
     return math.tanh(x)
 
 
 @overload(tanh, jit_options=_SCALAR)
-def _tanh(x):
+def _tanh(x, finite=False):
     return _tanh32.py_func if _is32(x) else _tanh64.py_func
 
 
@@ -206,7 +223,7 @@ _TANH32_B = (4.89352518554385e-03, 2.26843463243900e-03, 1.18534705686654e-04, 1
 
 
 @njit(inline="always", **FAST)
-def _tanh32(x):
+def _tanh32(x, finite=False):
     """float32 tanh: Eigen's rational (one division; within a few float32 ulp), ``x`` itself for ``|x| < 4e-4``."""
     f = np.float32
     a0, a1, a2, a3, a4, a5, a6 = _TANH32_A
@@ -220,7 +237,7 @@ def _tanh32(x):
 
 
 @njit(inline="always", **FAST)
-def _tanh64(x):
+def _tanh64(x, finite=False):
     """Branchless ``math.tanh(x)`` for float64 (within 2 ulp; signed zeros, +-inf -> +-1, NaN -> NaN).
 
     ``|x| < 0.625``: Cephes rational; else ``1 - 2 / (exp(2|x|) + 1)`` with ``2|x|`` capped at 40
@@ -239,6 +256,8 @@ def _tanh64(x):
     r_small = x + q
     r_big = 1.0 - q
     r = math.copysign(r_small if small else r_big, x)
+    if finite:
+        return r
     return x if x != x else r
 
 

@@ -171,11 +171,12 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
     """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major.
 
     Where :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the
-    ranged ``atan2`` (the same bits with fewer operations), else the general one."""
+    ranged ``atan2`` (the same bits with fewer operations), else the general one. Returns whether it held."""
     if in_range(x, y, sin_h, cos_h, poi_xy):
         _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, True)
-    else:
-        _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, False)
+        return True
+    _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, False)
+    return False
 
 
 @njit(inline="always", **FAST)
@@ -191,6 +192,22 @@ def in_range(x, y, sin_h, cos_h, poi_xy):
         bad |= _off(x[q], lo, hi) | _off(y[q], lo, hi) | _off_unit(cos_h[q], sin_h[q])
     for j in range(poi_xy.shape[0]):
         bad |= _off(poi_xy[j, 0], lo, hi) | _off(poi_xy[j, 1], lo, hi)
+    return not bad
+
+
+@njit(inline="always", **FAST)
+def mlp_finite(genomes, poi_type, sensor_range):
+    """True when every sum of the MLP is finite on the steps whose sensing is :func:`in_range`, so that its tanh may
+    take ``finite=True``: every weight below 2^900 (float32: 2^60) and every POI type below 2^100 (2^30) in
+    magnitude, and ``1 / sensor_range`` finite. The readings are then within [-1, 1] but the types, and a sum of
+    fewer than 2^20 products stays below 2^1020 (2^110). genomes (N, G), poi_type (P,)."""
+    big, typ = pick(sensor_range, 2.0 ** 900, 2.0 ** 60), pick(sensor_range, 2.0 ** 100, 2.0 ** 30)
+    bad = not abs(like(sensor_range, 1.0) / sensor_range) < np.inf       # as sense_flat's inv_range
+    for i in range(genomes.shape[0]):
+        for v in range(genomes.shape[1]):
+            bad |= not abs(genomes[i, v]) < big
+    for j in range(poi_type.shape[0]):
+        bad |= not abs(poi_type[j]) < typ
     return not bad
 
 
@@ -246,20 +263,30 @@ def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, rang
 
 
 @njit(inline="always", **FAST)
-def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1):
+def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1, finite=False):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
-    hid (H*E,) and rows (D,) int64 are scratch."""
+    hid (H*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (:func:`mlp_finite` and
+    :func:`in_range`), so the tanh may leave out its NaN case."""
     ne = a0.shape[0]
     pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)  # the output tiles' scratch and rows
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
-        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep])
+        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep], finite)
     # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
     # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
-    for q in range(ne):
-        a0[q] = tanh(a0[q])
-    for q in range(ne):
-        a1[q] = tanh(a1[q])
+    if finite:
+        _squash(a0, True)
+        _squash(a1, True)
+    else:
+        _squash(a0, False)
+        _squash(a1, False)
+
+
+@njit(inline="always", **FAST)
+def _squash(a, finite):
+    """a <- tanh(a) in place; ``finite`` a constant at the call."""
+    for v in range(a.shape[0]):
+        a[v] = tanh(a[v], finite)
 
 
 @njit(inline="always", **FAST)
@@ -276,12 +303,13 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 
 @njit(**FAST)
-def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
+def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite):
     """MLP of one rover over its E episodes.
 
     genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``; hid (H*E,) scratch ->
     out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch,
-    pre (2*E,) scratch, units (H,) = 0..H-1. Inputs are summed in index order.
+    pre (2*E,) scratch, units (H,) = 0..H-1; ``finite`` as in :func:`act_flat`. Inputs are summed in index
+    order.
     """
     d = obs.shape[0] // ne
     ep = out0.shape[0]
@@ -323,8 +351,10 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1):
                 for e in range(eb if u < hb else 0, ep):
                     hid[ou + U(e)] += obs[ok + U(e)] * w
     # -- the hidden layer's tanh, the output layer --
-    for v in range(hidden * ep):
-        hid[v] = tanh(hid[v])
+    if finite:
+        _squash(hid[:hidden * ep], True)
+    else:
+        _squash(hid[:hidden * ep], False)
     for e0 in range(0, ob, width):                    # register tiles from the biases (simd.output_tile) ...
         output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
     if ob < ep:                                       # ... then the rest
