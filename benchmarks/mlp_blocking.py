@@ -31,6 +31,7 @@ from numba import njit
 from rovermarl import make_world
 from rovermarl.env.kernel import math as kmath
 from rovermarl.env.kernel import simd
+from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import _mlp, _squash, sense_flat
 
@@ -103,7 +104,8 @@ def variant_source(rows: int, units: int) -> str:
 def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
     namespace = {"U": np.uint64, "tanh": kmath.tanh, "like": kmath.like, "hidden_tile": simd.hidden_tile,
-                 "output_tile": simd.output_tile, "UNITS": simd.UNITS, "lanes": simd.lanes, "_squash": _squash}
+                 "output_tile": simd.output_tile, "output_tile2": simd.output_tile2, "UNITS": simd.UNITS,
+                 "lanes": simd.lanes, "_squash": _squash}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
     return njit(**options)(namespace["_mlp"])
@@ -113,14 +115,14 @@ def team_loop(mlp):
     """A compiled loop of ``reps`` calls of ``mlp`` for every rover of a team, then the output tanh of all of them
     (as ``act_flat`` does): the act stage of one step."""
     @njit(**{k: v for k, v in FAST.items() if k != "cache"})
-    def loop(genomes, obs, n_ep, hidden, reps, hid, rows, a0, a1):
+    def loop(genomes, obs, cand, n_ep, hidden, reps, hid, rows, a0, a1):
         ne = a0.shape[0]
         for _ in range(reps):
             pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
-                mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep],
-                    True)
+                mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep],
+                    a1[q0:q0 + n_ep], True)
             for q in range(ne):
                 a0[q] = kmath.tanh(a0[q], True)
             for q in range(ne):
@@ -141,7 +143,7 @@ def inputs(world, seed: int = 0, dtype=np.float64):
     obs = np.empty(d * ne)
     sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs)
     genomes = rng.uniform(-2, 2, (n, world.n_params))
-    return genomes.astype(dtype), obs.astype(dtype), n_ep, world.hidden, d, ne
+    return genomes.astype(dtype), obs.astype(dtype), input_rows(n, world._type), n_ep, world.hidden, d, ne
 
 
 def main() -> None:
@@ -154,7 +156,7 @@ def main() -> None:
                    help="ROWSxUNITS per pass, comma-separated")
     a = p.parse_args()
     f = np.dtype(a.dtype).type
-    genomes, obs, n_ep, hidden, d, ne = inputs(make_world(a.setup), dtype=f)
+    genomes, obs, cand, n_ep, hidden, d, ne = inputs(make_world(a.setup), dtype=f)
     options = {k: v for k, v in FAST.items() if k != "cache"}
     mlps = {"kernel": _mlp, "kernel_again": njit(**options)(_mlp.py_func),
             "no_tanh": compile_variant(kernel_source(squash="hid[v] * like(hid[v], 0.5)")),
@@ -166,13 +168,13 @@ def main() -> None:
     for name, mlp in mlps.items():
         loops[name] = team_loop(mlp)
         outs[name] = (np.empty(ne, f), np.empty(ne, f))
-        loops[name](genomes, obs, n_ep, hidden, 1, np.empty(hidden * n_ep, f), np.empty(d, np.int64), *outs[name])
+        loops[name](genomes, obs, cand, n_ep, hidden, 1, np.empty(hidden * n_ep, f), np.empty(d, np.int64), *outs[name])
     names = list(loops)
     seconds = {name: [] for name in names}
     for r in range(a.repeats):                                       # rotating order: noise hits all alike
         for name in names[r % len(names):] + names[:r % len(names)]:
             t = time.process_time()
-            loops[name](genomes, obs, n_ep, hidden, a.reps, np.empty(hidden * n_ep, f), np.empty(d, np.int64),
+            loops[name](genomes, obs, cand, n_ep, hidden, a.reps, np.empty(hidden * n_ep, f), np.empty(d, np.int64),
                         np.empty(ne, f), np.empty(ne, f))
             seconds[name].append(time.process_time() - t)
     ns = {name: min(seconds[name]) / (a.reps * ne) * 1e9 for name in names}

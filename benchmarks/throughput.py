@@ -45,6 +45,7 @@ from numba import njit
 from rovermarl import make_world
 from rovermarl.config import compose_config
 from rovermarl.env import kernel, reference
+from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
 from rovermarl.runner.chunk import Run, parts, to_plain
@@ -186,14 +187,14 @@ def loop_rate(cfg: dict, n: int, loop: str = "auto") -> float:
 
 
 @njit(**FAST)
-def _stage_loop(which, reps, genomes, x, y, heading, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, n_ep,
+def _stage_loop(which, reps, genomes, x, y, heading, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, cand, n_ep,
                 hidden, hid, rows, a0, a1, v_max, w_max):
     """``reps`` calls of one stage loop (0 sense, 1 act, 2 move) on fixed inputs; move works on copies."""
     for _ in range(reps):
         if which == 0:
             sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
         elif which == 1:
-            act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1)
+            act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, True)
         else:
             move_flat(x.copy(), y.copy(), heading.copy(), sin_h.copy(), cos_h.copy(), a0, a1, v_max, w_max, 0)
 
@@ -210,8 +211,8 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
     args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
-            n_ep, world.hidden, np.empty(world.hidden * n_ep), np.empty(d, dtype=np.int64), a0, a1,
-            float(world.v_max), world.w_max)
+            input_rows(n, world._type), n_ep, world.hidden, np.empty(world.hidden * n_ep), np.empty(d, dtype=np.int64),
+            a0, a1, float(world.v_max), world.w_max)
     out = {}
     for which, name in enumerate(("sense", "act", "move")):
         _stage_loop(which, 1, *args)

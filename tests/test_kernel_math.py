@@ -9,7 +9,7 @@ from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_arra
 
 from rovermarl import make_world
 from rovermarl.env import kernel
-from rovermarl.env.kernel import rules, stages
+from rovermarl.env.kernel import checks, rules, stages
 from rovermarl.env.kernel.math import RANGED_MAX, RANGED_MIN
 
 RNG = np.random.default_rng(12345)
@@ -131,18 +131,20 @@ def test_finite_tanh_and_act_give_the_general_bits():
     obs[:n * e] = 0.0                                                   # a zero row, skipped
     genomes = RNG.uniform(-2, 2, (n, world.n_params)) * 10.0 ** RNG.integers(-3, 4, (n, 1))
     acts = [[np.empty(n * e), np.empty(n * e)] for _ in range(2)]
+    every = np.tile(np.arange(d), (n, 1))
     for flag, (a0, a1) in zip((False, True), acts, strict=True):
-        stages.act_flat(genomes, obs, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1, flag)
+        stages.act_flat(genomes, obs, every, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1,
+                        flag)
     assert same_bits(acts[0][0], acts[1][0]) and same_bits(acts[0][1], acts[1][1])
     r = float(world.sensor_range)
-    assert stages.mlp_finite(genomes, world._type, r)
-    assert not stages.mlp_finite(genomes * np.inf, world._type, r) and not stages.mlp_finite(genomes, world._type, 0.0)
-    assert not stages.mlp_finite(genomes, world._type + 2.0 ** 200, r)
-    assert not stages.mlp_finite(np.where(genomes > 1, np.nan, genomes), world._type, r)
+    assert checks.mlp_finite(genomes, world._type, r)
+    assert not checks.mlp_finite(genomes * np.inf, world._type, r) and not checks.mlp_finite(genomes, world._type, 0.0)
+    assert not checks.mlp_finite(genomes, world._type + 2.0 ** 200, r)
+    assert not checks.mlp_finite(np.where(genomes > 1, np.nan, genomes), world._type, r)
 
 
 def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
-    """sense_flat's two paths give the same bits on ordinary states; states outside stages.in_range (a coordinate
+    """sense_flat's two paths give the same bits on ordinary states; states outside checks.in_range (a coordinate
     of 1e-300, a NaN heading) take the general path."""
     world = make_world("duo")
     n, e = world.n_rovers, world.episodes
@@ -163,7 +165,7 @@ def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
         stages.sense_flat(x, y, s, c, *args, got)
         stages._sense_rows(x, y, s, c, *args, general, False)
         stages._sense_rows(x, y, s, c, *args, ranged, True)
-        assert stages.in_range(x, y, s, c, world.poi_xy) == (trial < 4)
+        assert checks.in_range(x, y, s, c, world.poi_xy) == (trial < 4)
         assert same_bits(got, general)
         if trial < 4:
             assert same_bits(got, ranged)
@@ -231,8 +233,10 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     actions = np.empty((e, n, 2))
     kernel.act(genomes, obs, world.hidden, actions)
     a0, a1 = np.empty(n * e), np.empty(n * e)
-    stages.act_flat(genomes, flat, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1)
+    cand = checks.input_rows(n, world._type)                         # as the rollout: no structural zero rows
+    stages.act_flat(genomes, flat, cand, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1)
     assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
+    assert (cand == -1).sum() == n * (2 + (world._type == 0).sum())   # own slot and type-0 rows left out
 
 
 @pytest.mark.parametrize(("episodes", "hidden"), [(16, 16), (8, 16), (20, 6), (3, 5), (24, 4), (1, 1)])
@@ -278,7 +282,8 @@ def test_poi_test_has_one_home():
 
 
 @pytest.mark.parametrize("fn", [kernel.sense, kernel.act, kernel.move, kernel.observers, kernel.payout,
-                                kernel.reward, rules.within, rules.poi_of], ids=lambda f: f.__name__)
+                                kernel.reward, rules.within, rules.poi_of, checks.input_rows],
+                         ids=lambda f: f.__name__)
 def test_docstring_examples_run(fn):
     test = doctest.DocTestParser().get_doctest(fn.__doc__, {fn.__name__: fn}, fn.__name__, None, 0)
     runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)

@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rovermarl.env.kernel.checks import input_rows, mlp_finite
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.reward import fold, reward, settle
 from rovermarl.env.kernel.rules import BEST_STEP, FINAL
-from rovermarl.env.kernel.stages import act_flat, from_flat, mlp_finite, move_flat, sense_flat, to_flat
+from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
 
 
 @njit(**FAST)
@@ -37,7 +38,7 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     obs = np.empty(d * ne, dtype=xy0.dtype)
     hid = np.empty(hidden * n_ep, dtype=xy0.dtype)
-    rows = np.empty(d, dtype=np.int64)
+    rows, cand = np.empty(d, dtype=np.int64), input_rows(n, poi_type)
     to_flat(xy0[:, :, 0], x)
     to_flat(xy0[:, :, 1], y)
     to_flat(heading0, heading)
@@ -53,7 +54,7 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     step, acc = np.empty(n_ep), np.full(n_ep, -np.inf if reward_mode == BEST_STEP else 0.0)
     for t in range(steps):
         ranged = sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
-        act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1, finite and ranged)
+        act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite and ranged)
         move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
         if record:
             from_flat(x, traj_xy[:, t + 1, :, 0])

@@ -21,9 +21,10 @@ import math
 import numpy as np
 from numba import njit
 
-from rovermarl.env.kernel.math import FAST, like, pick, sincos_all, tanh, wrap
+from rovermarl.env.kernel.checks import in_range
+from rovermarl.env.kernel.math import FAST, like, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
-from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile
+from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile, output_tile2
 
 U = np.uint64
 
@@ -84,7 +85,10 @@ def act(genomes, obs, hidden, out):
     g = np.empty(genomes.shape, dtype=obs.dtype)            # the MLP runs in the observations' precision
     g[:] = genomes
     a = np.empty((2, ne), dtype=obs.dtype)
-    act_flat(g, flat, n_ep, hidden, np.empty(hidden * n_ep, dtype=obs.dtype), np.empty(d, dtype=np.int64), a[0], a[1])
+    every = np.empty((n, d), dtype=np.int64)                # any input row may be nonzero here
+    every[:] = np.arange(d)
+    act_flat(g, flat, every, n_ep, hidden, np.empty(hidden * n_ep, dtype=obs.dtype), np.empty(d, dtype=np.int64),
+             a[0], a[1])
     from_flat(a[0], out[:, :, 0])
     from_flat(a[1], out[:, :, 1])
 
@@ -180,50 +184,6 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
 
 
 @njit(inline="always", **FAST)
-def in_range(x, y, sin_h, cos_h, poi_xy):
-    """True when the bearings of these rovers and POIs meet the promise of ``atan2(ranged=True)``: every
-    coordinate is 0 or of magnitude in [2^-700, 2^700) (float32: [2^-30, 2^30)), and every (cos, sin) has both
-    magnitudes <= 1 and one >= 1/2. Then a nonzero offset is at least 2^-752 (2^-53) long, the rover frame keeps
-    at least half of it and ``max(|xr|, |yr|)`` lies in ``[RANGED_MIN, RANGED_MAX]``; a zero offset reads
-    (cos, -sin). x, y, sin_h, cos_h (M,), poi_xy (P, 2)."""
-    lo, hi = pick(x[0], 2.0 ** -700, 2.0 ** -30), pick(x[0], 2.0 ** 700, 2.0 ** 30)
-    bad = False
-    for q in range(x.shape[0]):
-        bad |= _off(x[q], lo, hi) | _off(y[q], lo, hi) | _off_unit(cos_h[q], sin_h[q])
-    for j in range(poi_xy.shape[0]):
-        bad |= _off(poi_xy[j, 0], lo, hi) | _off(poi_xy[j, 1], lo, hi)
-    return not bad
-
-
-@njit(inline="always", **FAST)
-def mlp_finite(genomes, poi_type, sensor_range):
-    """True when every sum of the MLP is finite on the steps whose sensing is :func:`in_range`, so that its tanh may
-    take ``finite=True``: every weight below 2^900 (float32: 2^60) and every POI type below 2^100 (2^30) in
-    magnitude, and ``1 / sensor_range`` finite. The readings are then within [-1, 1] but the types, and a sum of
-    fewer than 2^20 products stays below 2^1020 (2^110). genomes (N, G), poi_type (P,)."""
-    big, typ = pick(sensor_range, 2.0 ** 900, 2.0 ** 60), pick(sensor_range, 2.0 ** 100, 2.0 ** 30)
-    bad = not abs(like(sensor_range, 1.0) / sensor_range) < np.inf       # as sense_flat's inv_range
-    for i in range(genomes.shape[0]):
-        for v in range(genomes.shape[1]):
-            bad |= not abs(genomes[i, v]) < big
-    for j in range(poi_type.shape[0]):
-        bad |= not abs(poi_type[j]) < typ
-    return not bad
-
-
-@njit(inline="always")
-def _off(v, lo, hi):
-    a = abs(v)
-    return ((a > like(v, 0.0)) & (a < lo)) | (not a < hi)          # NaN too
-
-
-@njit(inline="always")
-def _off_unit(c, s):
-    ac, as_ = abs(c), abs(s)
-    return (not ac <= like(c, 1.0)) | (not as_ <= like(c, 1.0)) | (not max(ac, as_) >= like(c, 0.5))
-
-
-@njit(inline="always", **FAST)
 def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, ranged):
     """The loops of :func:`sense_flat`; ``ranged`` (a constant at each call) goes to :func:`bearing`."""
     ne = x.shape[0]
@@ -263,15 +223,17 @@ def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, rang
 
 
 @njit(inline="always", **FAST)
-def act_flat(genomes, obs, n_ep, hidden, hid, rows, a0, a1, finite=False):
-    """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major;
-    hid (H*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (:func:`mlp_finite` and
-    :func:`in_range`), so the tanh may leave out its NaN case."""
+def act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite=False):
+    """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major.
+    cand (N, D) int64: the input rows of each rover that may be nonzero (``checks.input_rows``; ``arange(D)`` when
+    unknown); hid (H*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (``checks.mlp_finite`` and
+    ``checks.in_range``), so the tanh may leave out its NaN case."""
     ne = a0.shape[0]
     pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)  # the output tiles' scratch and rows
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
-        _mlp(genomes[i], obs, q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep], finite)
+        _mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep],
+             finite)
     # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
     # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
     if finite:
@@ -303,10 +265,11 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 
 @njit(**FAST)
-def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite):
+def _mlp(genome, obs, cand, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite):
     """MLP of one rover over its E episodes.
 
-    genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``; hid (H*E,) scratch ->
+    genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``, cand (D,) the rows that may be
+    nonzero, increasing, then -1 (``checks.input_rows``); hid (H*E,) scratch ->
     out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch,
     pre (2*E,) scratch, units (H,) = 0..H-1; ``finite`` as in :func:`act_flat`. Inputs are summed in index
     order.
@@ -316,10 +279,13 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite)
     o_b1 = d * hidden
     o_w2 = o_b1 + hidden
     o_b2 = o_w2 + 2 * hidden
-    # Rows of obs that are zero in all E episodes (own rover slot, solo POI types, ...) add nothing:
-    # skip them. Exact for finite weights (h + 0 * w == h, up to the sign of a zero h).
+    # Rows of obs that are zero in all E episodes add nothing: skip them. Exact for finite weights (h + 0 * w == h,
+    # up to the sign of a zero h). cand leaves out those that always are (own rover slot, POI types of 0).
     nr, zero = 0, like(genome[0], 0.0)
-    for k in range(d):
+    for c in range(d):
+        k = cand[c]
+        if k < 0:
+            break
         ok = U(k * ne + q0)
         nz = obs[ok] != zero                         # most rows that are not zero are so in the first episode
         if not nz:
@@ -355,7 +321,10 @@ def _mlp(genome, obs, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite)
         _squash(hid[:hidden * ep], True)
     else:
         _squash(hid[:hidden * ep], False)
-    for e0 in range(0, ob, width):                    # register tiles from the biases (simd.output_tile) ...
+    o2 = ob - ob % (2 * width)
+    for e0 in range(0, o2, 2 * width):                # register tiles from the biases (simd.output_tile2, ...
+        output_tile2(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
+    for e0 in range(o2, ob, width):                   # ... simd.output_tile) ...
         output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
     if ob < ep:                                       # ... then the rest
         b0 = genome[U(o_b2)]
