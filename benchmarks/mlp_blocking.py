@@ -118,11 +118,9 @@ def team_loop(mlp):
     def loop(genomes, obs, cand, n_ep, hidden, reps, hid, rows, a0, a1):
         ne = a0.shape[0]
         for _ in range(reps):
-            pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)
             for i in range(genomes.shape[0]):
                 q0 = i * n_ep
-                mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep],
-                    a1[q0:q0 + n_ep], True)
+                mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep], True)
             for q in range(ne):
                 a0[q] = kmath.tanh(a0[q], True)
             for q in range(ne):
@@ -168,14 +166,15 @@ def main() -> None:
     for name, mlp in mlps.items():
         loops[name] = team_loop(mlp)
         outs[name] = (np.empty(ne, f), np.empty(ne, f))
-        loops[name](genomes, obs, cand, n_ep, hidden, 1, np.empty(hidden * n_ep, f), np.empty(d, np.int64), *outs[name])
+        loops[name](genomes, obs, cand, n_ep, hidden, 1, np.empty((hidden + 2) * n_ep, f), np.empty(d, np.int64),
+                    *outs[name])
     names = list(loops)
     seconds = {name: [] for name in names}
     for r in range(a.repeats):                                       # rotating order: noise hits all alike
         for name in names[r % len(names):] + names[:r % len(names)]:
             t = time.process_time()
-            loops[name](genomes, obs, cand, n_ep, hidden, a.reps, np.empty(hidden * n_ep, f), np.empty(d, np.int64),
-                        np.empty(ne, f), np.empty(ne, f))
+            loops[name](genomes, obs, cand, n_ep, hidden, a.reps, np.empty((hidden + 2) * n_ep, f),
+                        np.empty(d, np.int64), np.empty(ne, f), np.empty(ne, f))
             seconds[name].append(time.process_time() - t)
     ns = {name: min(seconds[name]) / (a.reps * ne) * 1e9 for name in names}
     kernel_s = np.array(seconds["kernel"])

@@ -211,8 +211,8 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
     args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
-            input_rows(n, world._type), n_ep, world.hidden, np.empty(world.hidden * n_ep), np.empty(d, dtype=np.int64),
-            a0, a1, float(world.v_max), world.w_max)
+            input_rows(n, world._type), n_ep, world.hidden, np.empty((world.hidden + 2) * n_ep),
+            np.empty(d, dtype=np.int64), a0, a1, float(world.v_max), world.w_max)
     out = {}
     for which, name in enumerate(("sense", "act", "move")):
         _stage_loop(which, 1, *args)

@@ -133,8 +133,8 @@ def test_finite_tanh_and_act_give_the_general_bits():
     acts = [[np.empty(n * e), np.empty(n * e)] for _ in range(2)]
     every = np.tile(np.arange(d), (n, 1))
     for flag, (a0, a1) in zip((False, True), acts, strict=True):
-        stages.act_flat(genomes, obs, every, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1,
-                        flag)
+        stages.act_flat(genomes, obs, every, e, world.hidden, np.empty((world.hidden + 2) * e), np.empty(d, np.int64),
+                        a0, a1, flag)
     assert same_bits(acts[0][0], acts[1][0]) and same_bits(acts[0][1], acts[1][1])
     r = float(world.sensor_range)
     assert checks.mlp_finite(genomes, world._type, r)
@@ -234,7 +234,8 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     kernel.act(genomes, obs, world.hidden, actions)
     a0, a1 = np.empty(n * e), np.empty(n * e)
     cand = checks.input_rows(n, world._type)                         # as the rollout: no structural zero rows
-    stages.act_flat(genomes, flat, cand, e, world.hidden, np.empty(world.hidden * e), np.empty(d, np.int64), a0, a1)
+    stages.act_flat(genomes, flat, cand, e, world.hidden, np.empty((world.hidden + 2) * e), np.empty(d, np.int64),
+                    a0, a1)
     assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
     assert (cand == -1).sum() == n * (2 + (world._type == 0).sum())   # own slot and type-0 rows left out
 

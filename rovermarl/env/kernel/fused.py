@@ -37,7 +37,7 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     state = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     obs = np.empty(d * ne, dtype=xy0.dtype)
-    hid = np.empty(hidden * n_ep, dtype=xy0.dtype)
+    hid = np.empty((hidden + 2) * n_ep, dtype=xy0.dtype)
     rows, cand = np.empty(d, dtype=np.int64), input_rows(n, poi_type)
     to_flat(xy0[:, :, 0], x)
     to_flat(xy0[:, :, 1], y)

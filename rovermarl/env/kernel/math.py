@@ -312,9 +312,12 @@ def sincos(a):
 def sincos_all(heading, sin_h, cos_h):
     """sin_h, cos_h (M,) <- sin, cos of heading (M,): :func:`sincos`, libm beyond ``SINCOS_MAX``."""
     m = heading.shape[0]
+    far = False
     for q in range(m):
         sin_h[q], cos_h[q] = sincos(heading[q])
-    for q in range(m):
-        if abs(heading[q]) > SINCOS_MAX:
-            sin_h[q] = math.sin(heading[q])
-            cos_h[q] = math.cos(heading[q])
+        far |= abs(heading[q]) > SINCOS_MAX
+    if far:                                          # rare: the scalar pass only then
+        for q in range(m):
+            if abs(heading[q]) > SINCOS_MAX:
+                sin_h[q] = math.sin(heading[q])
+                cos_h[q] = math.cos(heading[q])

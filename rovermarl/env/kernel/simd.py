@@ -43,7 +43,8 @@ def _const(x: int) -> ir.Constant:
 
 def _tile(units: int, vectors: int = 1):
     """An intrinsic ``tile(acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0, b0)`` over ``units`` units:
-    ``acc[(u0 + j)*ep + e] = genome[b0 + j]`` plus, for each row ``k`` of ``rows[:nr]`` in order,
+    ``acc[(u0 + j)*ep + e] = genome[b0 + j]`` plus, for each row ``k`` of ``rows[:nr]`` (or ``0 .. nr-1`` if rows
+    is None) in order,
     ``x[k*ne + q0 + e] * genome[w0 + k*wstride + j]``, for j < units and the ``vectors`` x :func:`lanes` episodes e
     from ``e0`` (the sums start from the biases in registers; ``units * vectors`` independent chains). acc, x, genome
     of one float dtype and rows int64 must be contiguous, and the tile must lie inside them (the callers check)."""
@@ -60,8 +61,10 @@ def _tile(units: int, vectors: int = 1):
 
         def codegen(context, builder, signature, args):
             acc_a, x_a, genome_a, rows_a, nr, q0, ne, wstride, w0, u0, ep, e0, b0 = args
-            hp, op, gp, rp = (cgutils.create_struct_proxy(t)(context, builder, value=v).data
-                              for t, v in zip(signature.args[:4], (acc_a, x_a, genome_a, rows_a), strict=True))
+            hp, op, gp = (cgutils.create_struct_proxy(t)(context, builder, value=v).data
+                          for t, v in zip(signature.args[:3], (acc_a, x_a, genome_a), strict=True))
+            every = signature.args[3] == types.none        # rows None: every row, 0 .. nr-1
+            rp = None if every else cgutils.create_struct_proxy(signature.args[3])(context, builder, value=rows_a).data
             add, mul = builder.add, builder.mul
 
             def vector_at(base, offset):
@@ -88,7 +91,7 @@ def _tile(units: int, vectors: int = 1):
             r = builder.phi(_I64)
             chains = units * vectors                            # chain c = j * vectors + v
             acc = [builder.phi(vec) for _ in range(chains)]
-            k = builder.load(builder.gep(rp, [r]))
+            k = r if every else builder.load(builder.gep(rp, [r]))
             base = add(add(mul(k, ne), q0), e0)
             xs = [builder.load(vector_at(op, add(base, _const(v * width))), align=align) for v in range(vectors)]
             row = add(mul(k, wstride), w0)
@@ -132,15 +135,15 @@ def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, b0):
 
 
 @njit(inline="always")
-def output_tile(pre, hid, genome, units, hidden, w0, ep, e0, b0):
+def output_tile(pre, hid, genome, hidden, w0, ep, e0, b0):
     """The output layer's sums for the tile of episodes ``e0 .. e0+lanes(pre)-1``: ``pre[j*ep + e] = genome[b0 + j]
-    + hid[u*ep + e] * genome[w0 + 2*u + j] + ...`` for u = ``units[0] .. units[hidden-1]`` in order and j = 0, 1.
-    pre (2*E,), hid (H*E,), genome (G,) contiguous; units (H,) int64 holds 0..H-1."""
-    _output(pre, hid, genome, units, hidden, 0, ep, 2, w0, 0, ep, e0, b0)
+    + hid[u*ep + e] * genome[w0 + 2*u + j] + ...`` for u = 0 .. hidden-1 in order and j = 0, 1.
+    pre (2*E,), hid (>= H*E,), genome (G,) contiguous."""
+    _output(pre, hid, genome, None, hidden, 0, ep, 2, w0, 0, ep, e0, b0)
 
 
 @njit(inline="always")
-def output_tile2(pre, hid, genome, units, hidden, w0, ep, e0, b0):
+def output_tile2(pre, hid, genome, hidden, w0, ep, e0, b0):
     """:func:`output_tile` for the episodes ``e0 .. e0+2*lanes(pre)-1`` at once: four independent chains of
     multiply-adds instead of two, the same sums."""
-    _output2(pre, hid, genome, units, hidden, 0, ep, 2, w0, 0, ep, e0, b0)
+    _output2(pre, hid, genome, None, hidden, 0, ep, 2, w0, 0, ep, e0, b0)

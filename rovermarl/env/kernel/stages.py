@@ -87,8 +87,8 @@ def act(genomes, obs, hidden, out):
     a = np.empty((2, ne), dtype=obs.dtype)
     every = np.empty((n, d), dtype=np.int64)                # any input row may be nonzero here
     every[:] = np.arange(d)
-    act_flat(g, flat, every, n_ep, hidden, np.empty(hidden * n_ep, dtype=obs.dtype), np.empty(d, dtype=np.int64),
-             a[0], a[1])
+    act_flat(g, flat, every, n_ep, hidden, np.empty((hidden + 2) * n_ep, dtype=obs.dtype),
+             np.empty(d, dtype=np.int64), a[0], a[1])
     from_flat(a[0], out[:, :, 0])
     from_flat(a[1], out[:, :, 1])
 
@@ -226,14 +226,12 @@ def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, rang
 def act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite=False):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major.
     cand (N, D) int64: the input rows of each rover that may be nonzero (``checks.input_rows``; ``arange(D)`` when
-    unknown); hid (H*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (``checks.mlp_finite`` and
+    unknown); hid ((H+2)*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (``checks.mlp_finite`` and
     ``checks.in_range``), so the tanh may leave out its NaN case."""
     ne = a0.shape[0]
-    pre, units = np.empty(2 * n_ep, dtype=a0.dtype), np.arange(hidden)  # the output tiles' scratch and rows
     for i in range(genomes.shape[0]):
         q0 = i * n_ep
-        _mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, pre, units, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep],
-             finite)
+        _mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep], finite)
     # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
     # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
     if finite:
@@ -265,20 +263,21 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 
 @njit(**FAST)
-def _mlp(genome, obs, cand, q0, ne, hidden, hid, rows, pre, units, out0, out1, finite):
+def _mlp(genome, obs, cand, q0, ne, hidden, hid, rows, out0, out1, finite):
     """MLP of one rover over its E episodes.
 
     genome (G,), obs (D*N*E,) feature-major, episodes at ``q0 .. q0+E-1``, cand (D,) the rows that may be
-    nonzero, increasing, then -1 (``checks.input_rows``); hid (H*E,) scratch ->
+    nonzero, increasing, then -1 (``checks.input_rows``); hid ((H+2)*E,) scratch: the hidden units, then the
+    output layer's sums ->
     out0, out1 (E,) = the two outputs before their tanh (:func:`act_flat` applies it); rows (D,) int scratch,
-    pre (2*E,) scratch, units (H,) = 0..H-1; ``finite`` as in :func:`act_flat`. Inputs are summed in index
-    order.
+    ``finite`` as in :func:`act_flat`. Inputs are summed in index order.
     """
     d = obs.shape[0] // ne
     ep = out0.shape[0]
     o_b1 = d * hidden
     o_w2 = o_b1 + hidden
     o_b2 = o_w2 + 2 * hidden
+    pre = hid[hidden * ep:(hidden + 2) * ep]
     # Rows of obs that are zero in all E episodes add nothing: skip them. Exact for finite weights (h + 0 * w == h,
     # up to the sign of a zero h). cand leaves out those that always are (own rover slot, POI types of 0).
     nr, zero = 0, like(genome[0], 0.0)
@@ -323,9 +322,9 @@ def _mlp(genome, obs, cand, q0, ne, hidden, hid, rows, pre, units, out0, out1, f
         _squash(hid[:hidden * ep], False)
     o2 = ob - ob % (2 * width)
     for e0 in range(0, o2, 2 * width):                # register tiles from the biases (simd.output_tile2, ...
-        output_tile2(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
+        output_tile2(pre, hid, genome, hidden, o_w2, ep, e0, o_b2)
     for e0 in range(o2, ob, width):                   # ... simd.output_tile) ...
-        output_tile(pre, hid, genome, units, hidden, o_w2, ep, e0, o_b2)
+        output_tile(pre, hid, genome, hidden, o_w2, ep, e0, o_b2)
     if ob < ep:                                       # ... then the rest
         b0 = genome[U(o_b2)]
         b1 = genome[U(o_b2 + 1)]
