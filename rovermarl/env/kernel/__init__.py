@@ -5,14 +5,16 @@
 - :mod:`~rovermarl.env.kernel.stages`: :func:`sense`, :func:`act`, :func:`move` on batch-first arrays, and their
   flat loops;
 - :mod:`~rovermarl.env.kernel.target`: 512-bit vectors on CPUs with AVX-512 (numba's target features, set at import);
-- :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's hidden layer (an LLVM-IR intrinsic);
+- :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's two layers (LLVM-IR intrinsics);
+- :mod:`~rovermarl.env.kernel.checks`: what the rollout checks (each step or each rollout) to take its cheaper
+  paths, each bit-identical to the general one;
 - :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), the
   per-step reward readings :func:`fold` and :func:`settle`, the score :func:`score` (numpy's summation order)
   and the phenotypic coupling measure :func:`switched`;
 - :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
 
 numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
-editing ``math.py``, ``rules.py``, ``simd.py``, ``stages.py`` or ``reward.py``, delete
+editing ``math.py``, ``rules.py``, ``simd.py``, ``checks.py``, ``stages.py`` or ``reward.py``, delete
 ``rovermarl/env/kernel/__pycache__`` (and ``rovermarl/record/__pycache__``, whose event functions call
 :func:`poi_of`, and ``rovermarl/algorithms/__pycache__``, whose compiled generation loop and operators embed the
 kernel and :func:`pairwise_sum`) so that their callers recompile.
