@@ -25,6 +25,8 @@ def in_range(x, y, sin_h, cos_h, poi_xy):
     magnitudes <= 1 and one >= 1/2. Then a nonzero offset is at least 2^-752 (2^-53) long, the rover frame keeps
     at least half of it and ``max(|xr|, |yr|)`` lies in ``[RANGED_MIN, RANGED_MAX]``; a zero offset reads
     (cos, -sin). x, y, sin_h, cos_h (M,), poi_xy (P, 2)."""
+    if x.shape[0] == 0:                              # no rover, no bearing (and no x[0] to read the dtype from)
+        return True
     lo, hi = pick(x[0], 2.0 ** -700, 2.0 ** -30), pick(x[0], 2.0 ** 700, 2.0 ** 30)
     bad = False
     for q in range(x.shape[0]):
