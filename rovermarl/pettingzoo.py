@@ -9,7 +9,7 @@ Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by
 Action shape         (2,): ``(a0, a1)`` in [-1, 1] (speed, turn; SPEC section 3), clipped to that box
 Action values        ``Box(-1, 1, (2,), float64)`` (float32 under ``env.dtype=float32``, as the observations)
 Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2)
-Observation values   ``Box`` of float64: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
+Observation values   ``Box`` in ``env.dtype``: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
 Episode              ``env.steps`` (15) steps, then every agent is truncated; no termination
 Reward               the team's, the same for every agent (SPEC section 1, ``env.reward``): ``final`` pays the team
                      return at the last step and 0 before; a per-step reading pays the growth of its running value

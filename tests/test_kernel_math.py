@@ -141,6 +141,7 @@ def test_finite_tanh_and_act_give_the_general_bits():
     assert not checks.mlp_finite(genomes * np.inf, world._type, r) and not checks.mlp_finite(genomes, world._type, 0.0)
     assert not checks.mlp_finite(genomes, world._type + 2.0 ** 200, r)
     assert not checks.mlp_finite(np.where(genomes > 1, np.nan, genomes), world._type, r)
+    assert not checks.mlp_finite(np.zeros((1, 2 ** 20)), world._type, r)            # a sum of 2^20 terms
 
 
 def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():

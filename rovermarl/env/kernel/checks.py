@@ -63,10 +63,11 @@ def input_rows(n, poi_type):
 def mlp_finite(genomes, poi_type, sensor_range):
     """True when every sum of the MLP is finite on the steps whose sensing is :func:`in_range`, so that its tanh may
     take ``finite=True``: every weight below 2^900 (float32: 2^60) and every POI type below 2^100 (2^30) in
-    magnitude, and ``1 / sensor_range`` finite. The readings are then within [-1, 1] but the types, and a sum of
-    fewer than 2^20 products stays below 2^1020 (2^110). genomes (N, G), poi_type (P,)."""
+    magnitude, ``1 / sensor_range`` finite, and G < 2^20. The readings are then within [-1, 1] but the types, and
+    a sum of fewer than 2^20 products stays below 2^1020 (2^110). genomes (N, G), poi_type (P,)."""
     big, typ = pick(sensor_range, 2.0 ** 900, 2.0 ** 60), pick(sensor_range, 2.0 ** 100, 2.0 ** 30)
     bad = not abs(like(sensor_range, 1.0) / sensor_range) < np.inf       # as sense_flat's inv_range
+    bad |= genomes.shape[1] >= 2 ** 20                                   # a sum has fewer than G terms
     for i in range(genomes.shape[0]):
         for v in range(genomes.shape[1]):
             bad |= not abs(genomes[i, v]) < big

@@ -75,7 +75,7 @@ def bearing(dx, dy, c, s, ranged=False):
     ``atan2`` of the offset rotated into the rover frame equals ``wrap(atan2(dy, dx) - h)`` up to
     rounding. A zero offset reads as the world x axis (``atan2(0, 0) = 0``), as in the SPEC formula.
     ``ranged``: passed on to :func:`~rovermarl.env.kernel.math.atan2` (the caller has checked its promise, as
-    ``stages.sense_flat`` does with ``stages.in_range``).
+    ``stages.sense_flat`` does with ``checks.in_range``).
     """
     zero = (dx == like(dx, 0.0)) & (dy == like(dx, 0.0))
     xr = dx * c + dy * s

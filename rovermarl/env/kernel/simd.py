@@ -43,11 +43,11 @@ def _const(x: int) -> ir.Constant:
 
 def _tile(units: int, vectors: int = 1):
     """An intrinsic ``tile(acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0, b0)`` over ``units`` units:
-    ``acc[(u0 + j)*ep + e] = genome[b0 + j]`` plus, for each row ``k`` of ``rows[:nr]`` (or ``0 .. nr-1`` if rows
-    is None) in order,
-    ``x[k*ne + q0 + e] * genome[w0 + k*wstride + j]``, for j < units and the ``vectors`` x :func:`lanes` episodes e
-    from ``e0`` (the sums start from the biases in registers; ``units * vectors`` independent chains). acc, x, genome
-    of one float dtype and rows int64 must be contiguous, and the tile must lie inside them (the callers check)."""
+    ``acc[(u0 + j)*ep + e] = genome[b0 + j]`` plus ``x[k*ne + q0 + e] * genome[w0 + k*wstride + j]`` for each row
+    ``k`` of ``rows[:nr]`` (or ``0 .. nr-1`` if rows is None) in order, for j < units and the ``vectors`` x
+    :func:`lanes` episodes e from ``e0`` (the sums start from the biases in registers; ``units * vectors``
+    independent chains). acc, x, genome of one float dtype and rows int64 must be contiguous, and the tile must lie
+    inside them (the callers check)."""
 
     @intrinsic
     def tile(typingctx, acc, x, genome, rows, nr, q0, ne, wstride, w0, u0, ep, e0, b0):
