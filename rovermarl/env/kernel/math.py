@@ -24,6 +24,7 @@ from numba.extending import intrinsic, overload
 
 TWO_PI = 2.0 * math.pi
 FAST = {"cache": True, "fastmath": {"contract"}, "error_model": "numpy"}
+U = np.uint64      # loop indices: unsigned, so numba emits no negative-index wraparound (which blocks vectorisation)
 _SCALAR = {"fastmath": {"contract"}, "error_model": "numpy"}   # FAST for scalar functions that LLVM inlines
 
 
