@@ -1,7 +1,9 @@
 """The kernel's own elementary functions against libm, and its stages against the fused rollout (bit for bit)."""
 
 import doctest
+import importlib.util
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -115,6 +117,40 @@ def test_ranged_atan2_gives_the_general_bits_where_it_promises(dtype, lo, hi):
     atan2_ranged_array(y, x, ranged)
     assert y.size > N and np.array_equal(general.view(np.uint8), ranged.view(np.uint8))
     assert dtype == np.float32 or (RANGED_MIN, RANGED_MAX) == (lo, hi)
+
+
+def old_kernel():
+    """The frozen copy of the 4c4ae3c kernel (benchmarks/kernel_4c4ae3c.py), whose float64 bits the kernel keeps."""
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "kernel_4c4ae3c.py"
+    spec = importlib.util.spec_from_file_location("kernel_4c4ae3c", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_atan2_and_tanh_keep_the_4c4ae3c_bits():
+    """The kernel's float64 atan2 (general and ranged) and tanh (general and finite) give the 4c4ae3c kernel's
+    bits: their operations changed (ranged paths, quadrant bookkeeping by selects, 2^n from its bits), the results
+    must not."""
+    old = old_kernel()
+    y, x = atan2_cases()
+    x = np.concatenate([x, RNG.normal(0, 30, N), -y[:1000], y[:1000], np.zeros(100), -np.zeros(100)])
+    y = np.concatenate([y, RNG.normal(0, 30, N), y[:1000], y[:1000], RNG.normal(0, 1, 100), RNG.normal(0, 1, 100)])
+    want, got, ranged = np.empty_like(y), np.empty_like(y), np.empty_like(y)
+    old.atan2_array(y, x, want)
+    atan2_array(y, x, got)
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))
+    big = np.maximum(np.abs(x), np.abs(y))
+    inside = (big >= RANGED_MIN) & (big <= RANGED_MAX)
+    atan2_ranged_array(y[inside], x[inside], ranged[:inside.sum()])
+    assert inside.sum() > N and np.array_equal(ranged[:inside.sum()].view(np.int64), want[inside].view(np.int64))
+    t = np.concatenate([RNG.normal(0, 3, N), RNG.normal(0, 30, N), RNG.uniform(-1, 1, N), [0.625, -0.625, 19.06, 20.0]])
+    want, got, finite = np.empty_like(t), np.empty_like(t), np.empty_like(t)
+    old.tanh_array(t, want)
+    tanh_array(t, got)
+    tanh_finite_array(t, finite)
+    assert np.array_equal(got.view(np.int64), want.view(np.int64))
+    assert np.array_equal(finite.view(np.int64), want.view(np.int64))
 
 
 def test_finite_tanh_and_act_give_the_general_bits():

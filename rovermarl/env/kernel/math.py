@@ -146,13 +146,12 @@ def atan2(y, x, ranged=False):
         d2 = one if eq | (den == zero) else d2
         t = n2 / d2
     a = _atan(t)
-    # quadrant bookkeeping in arithmetic (selects on combined conditions would become branches)
-    sw = one if swap else zero
-    bg = one if big else zero
-    half = like(x, 0.5)
-    xn = half - half * math.copysign(one, x)      # 1 for x < 0 or x = -0
-    sgn = one - two * abs(sw - xn)                 # -1 where exactly one of swap, x < 0 holds
-    k = two * sw + like(x, 4.0) * xn * (one - sw) + bg * sgn
+    # quadrant bookkeeping: k in 0 .. 4 and sgn = +-1, exact small integers, by selects on single conditions
+    neg = math.copysign(one, x) < zero            # x < 0 or x = -0
+    sgn = -one if swap ^ neg else one              # -1 where exactly one of swap, x < 0 holds
+    base = like(x, 4.0) if neg else zero
+    base = two if swap else base
+    k = base + (sgn if big else zero)
     r = math.copysign(k * pick(x, _PIO4_HI, _PIO4_HI32) + (k * pick(x, _PIO4_LO, _PIO4_LO32) + sgn * a), y)
     if ranged:
         return r
