@@ -68,3 +68,19 @@ def test_the_choice(host, kwargs, want):
 def test_a_bad_choice_names_itself():
     with pytest.raises(ValueError, match=r"^ROVERMARL_VECTORS='wide': must be one of auto, 512, off$"):
         target.features("+avx512f", "wide")
+
+
+@pytest.mark.parametrize("env, warned", [({"NUMBA_DEBUGINFO": "1"}, True),
+                                         ({"NUMBA_ENABLE_PROFILING": "1"}, True),
+                                         ({"NUMBA_ENABLE_PROFILING": "1", "NUMBA_DEBUGINFO": "0"}, False),
+                                         ({}, False)])
+def test_a_debug_build_is_named_at_import(env, warned, tmp_path):
+    """numba's debug-info build (not vectorised, and cached under the fast build's key) is warned about in one line
+    when the kernel is imported; profiling with NUMBA_DEBUGINFO=0 is not."""
+    clean = {k: v for k, v in os.environ.items() if k not in ("NUMBA_DEBUGINFO", "NUMBA_ENABLE_PROFILING")}
+    proc = subprocess.run([sys.executable, "-W", "always", "-c", "import rovermarl.env.kernel"], cwd=ROOT,
+                          env={**clean, **env, "NUMBA_CACHE_DIR": str(tmp_path)}, capture_output=True, text=True,
+                          timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = [line for line in proc.stderr.splitlines() if "UserWarning: numba builds with debug info" in line]
+    assert len(lines) == (1 if warned else 0), proc.stderr[-2000:]

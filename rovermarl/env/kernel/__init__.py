@@ -4,7 +4,8 @@
 - :mod:`~rovermarl.env.kernel.rules`: one home per rule (POI within radius, sensor encoding, bearing, turn, speed);
 - :mod:`~rovermarl.env.kernel.stages`: :func:`sense`, :func:`act`, :func:`move` on batch-first arrays, and their
   flat loops;
-- :mod:`~rovermarl.env.kernel.target`: 512-bit vectors on CPUs with AVX-512 (numba's target features, set at import);
+- :mod:`~rovermarl.env.kernel.target`: 512-bit vectors on CPUs with AVX-512 (numba's target features, set at import),
+  and a warning when numba builds with debug info (not vectorised, yet cached);
 - :mod:`~rovermarl.env.kernel.simd`: the register tiles of the MLP's two layers (LLVM-IR intrinsics);
 - :mod:`~rovermarl.env.kernel.checks`: what the rollout checks (each step or each rollout) to take its cheaper
   paths, each bit-identical to the general one;

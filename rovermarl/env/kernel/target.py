@@ -60,4 +60,21 @@ def configure() -> str | None:
     return chosen
 
 
+def debug_build_warning() -> str | None:
+    """The warning given at import when numba builds with debug info (``NUMBA_DEBUGINFO=1``, or
+    ``NUMBA_ENABLE_PROFILING=1`` without ``NUMBA_DEBUGINFO=0``), else None. Such a build does not inline the kernel's
+    ``tanh`` and ``atan2`` nor vectorise its loops (the float64 kernel measured about 5x slower here), and numba
+    caches it under the same key as the fast one, so later runs load it until the ``__pycache__`` dirs go."""
+    from numba.core import config
+
+    if not config.DEBUGINFO_DEFAULT:
+        return None
+    message = ("numba builds with debug info (NUMBA_DEBUGINFO / NUMBA_ENABLE_PROFILING): the kernel is not vectorised "
+               "(about 5x slower) and numba caches that build for later runs too; afterwards delete the __pycache__ "
+               "dirs under rovermarl/ (to profile, set NUMBA_DEBUGINFO=0 and a scratch NUMBA_CACHE_DIR)")
+    warnings.warn(message, stacklevel=3)
+    return message
+
+
 SET = configure()    # on import, which the kernel package does first: the features set, or None
+DEBUG_BUILD = debug_build_warning()
