@@ -38,12 +38,12 @@ from rovermarl.env.kernel.stages import _mlp, _squash, sense_flat
 SPLIT = "    # -- the hidden layer's sums"             # the kernel's hidden-layer sums start here ...
 RESUME = "    # -- the hidden layer's tanh"             # ... and end here
 SQUASH = """    if finite:
-        _squash(hid[:hidden * ep], True)
+        _squash(hid, p0, True)
     else:
-        _squash(hid[:hidden * ep], False)
+        _squash(hid, p0, False)
 """                                                    # the kernel's hidden tanh
 BIASES = """    for u in range(hidden):
-        b = genome[U(o_b1 + u)]
+        b = genomes[U(i), U(o_b1 + u)]
         for e in range(ep):
             hid[U(u * ep + e)] = b
 """                                                    # the sums' start, where the kernel's tiles do not give it
@@ -83,20 +83,20 @@ def variant_source(rows: int, units: int) -> str:
     lines = [head.rstrip("\n"), BIASES.rstrip("\n"), f"    n4 = nr - nr % {rows}",
              f"    hb = hidden - hidden % {units}", f"    for r in range(0, n4, {rows}):"]
     for i in range(rows):
-        lines += [f"        o{i} = U(rows[r + {i}] * ne + q0)", f"        g{i} = U(rows[r + {i}] * hidden)"]
+        lines += [f"        o{i} = U(rows[r + {i}] * ne + q0)", f"        kw{i} = U(rows[r + {i}] * hidden)"]
     lines.append(f"        for u in range(0, hb, {units}):")
     for j in range(units):
-        lines += [f"            w{i}_{j} = genome[g{i} + U(u + {j})]" for i in range(rows)]
+        lines += [f"            w{i}_{j} = genomes[U(i), kw{i} + U(u + {j})]" for i in range(rows)]
         lines.append(f"            h{j} = U((u + {j}) * ep)")
     lines += ["            for e in range(ep):", "                x = U(e)"]
     lines += [f"                hid[h{j} + x] = {chain(f'hid[h{j} + x]', rows, lambda i, j=j: f'w{i}_{j}')}"
               for j in range(units)]
     lines += ["        for u in range(hb, hidden):"]
-    lines += [f"            v{i} = genome[g{i} + U(u)]" for i in range(rows)]
+    lines += [f"            v{i} = genomes[U(i), kw{i} + U(u)]" for i in range(rows)]
     lines += ["            h = U(u * ep)", "            for e in range(ep):", "                x = U(e)",
               f"                hid[h + x] = {chain('hid[h + x]', rows, lambda i: f'v{i}')}"]
     lines += ["    for r in range(n4, nr):", "        ok = U(rows[r] * ne + q0)", "        for u in range(hidden):",
-              "            w = genome[U(rows[r] * hidden + u)]", "            for e in range(ep):",
+              "            w = genomes[U(i), U(rows[r] * hidden + u)]", "            for e in range(ep):",
               "                hid[U(u * ep + e)] += obs[ok + U(e)] * w"]
     return "\n".join(lines) + "\n" + tail
 
@@ -119,8 +119,7 @@ def team_loop(mlp):
         ne = a0.shape[0]
         for _ in range(reps):
             for i in range(genomes.shape[0]):
-                q0 = i * n_ep
-                mlp(genomes[i], obs, cand[i], q0, ne, hidden, hid, rows, a0[q0:q0 + n_ep], a1[q0:q0 + n_ep], True)
+                mlp(genomes, i, obs, cand, n_ep, hidden, hid, rows, a0, a1, True)
             for q in range(ne):
                 a0[q] = kmath.tanh(a0[q], True)
             for q in range(ne):

@@ -124,26 +124,28 @@ _output2 = _tile(2, 2)
 
 
 @njit(inline="always")
-def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, b0):
+def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, g0, b0):
     """The hidden layer's sums for the tile of units ``u0 .. u0+UNITS-1`` and episodes ``e0 .. e0+lanes(hid)-1``:
-    ``hid[u*ep + e] = genome[b0 + u] + obs[k*ne + q0 + e] * genome[k*hidden + u] + ...`` over the rows ``k`` of
-    ``rows[:nr]`` in order. hid (H*E,), obs (D*N*E,) feature-major, genome (G,) of one float dtype, rows (D,)
+    ``hid[u*ep + e] = g[b0 + u] + obs[k*ne + q0 + e] * g[g0 + k*hidden + u] + ...`` over the rows ``k`` of
+    ``rows[:nr]`` in order, where g is the genome array read as flat memory (``g0``, ``b0``: a rover's row and its
+    biases in it). hid (H*E,), obs (D*N*E,) feature-major, genome (G,) or (N, G) of one float dtype, rows (D,)
     int64; the tile must lie inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and
-    ``e0 + lanes <= ep``), and every array must be contiguous (the caller checks the genome's stride; the others
+    ``e0 + lanes <= ep``), and every array must be contiguous (the caller checks the genome's strides; the others
     are its own buffers)."""
-    _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, u0, u0, ep, e0, b0 + u0)
+    _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, g0 + u0, u0, ep, e0, b0 + u0)
 
 
 @njit(inline="always")
-def output_tile(pre, hid, genome, hidden, w0, ep, e0, b0):
-    """The output layer's sums for the tile of episodes ``e0 .. e0+lanes(pre)-1``: ``pre[j*ep + e] = genome[b0 + j]
-    + hid[u*ep + e] * genome[w0 + 2*u + j] + ...`` for u = 0 .. hidden-1 in order and j = 0, 1.
-    pre (2*E,), hid (>= H*E,), genome (G,) contiguous."""
-    _output(pre, hid, genome, None, hidden, 0, ep, 2, w0, 0, ep, e0, b0)
+def output_tile(hid, genome, hidden, w0, ep, e0, b0):
+    """The output layer's sums for the tile of episodes ``e0 .. e0+lanes(hid)-1``, into the two rows after the
+    hidden units: ``hid[(hidden + j)*ep + e] = g[b0 + j] + hid[u*ep + e] * g[w0 + 2*u + j] + ...`` for
+    u = 0 .. hidden-1 in order and j = 0, 1 (g: the genome array as flat memory). hid ((H+2)*E,), genome
+    contiguous."""
+    _output(hid, hid, genome, None, hidden, 0, ep, 2, w0, hidden, ep, e0, b0)
 
 
 @njit(inline="always")
-def output_tile2(pre, hid, genome, hidden, w0, ep, e0, b0):
-    """:func:`output_tile` for the episodes ``e0 .. e0+2*lanes(pre)-1`` at once: four independent chains of
+def output_tile2(hid, genome, hidden, w0, ep, e0, b0):
+    """:func:`output_tile` for the episodes ``e0 .. e0+2*lanes(hid)-1`` at once: four independent chains of
     multiply-adds instead of two, the same sums."""
-    _output2(pre, hid, genome, None, hidden, 0, ep, 2, w0, 0, ep, e0, b0)
+    _output2(hid, hid, genome, None, hidden, 0, ep, 2, w0, hidden, ep, e0, b0)
