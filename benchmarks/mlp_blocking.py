@@ -119,7 +119,7 @@ def team_loop(mlp):
         ne = a0.shape[0]
         for _ in range(reps):
             for i in range(genomes.shape[0]):
-                mlp(genomes, i, obs, cand, hidden, hid, rows, True)
+                mlp(genomes, i, obs, cand, n_ep, hidden, hid, rows, True)
                 for e in range(n_ep):
                     a0[i * n_ep + e] = hid[hidden * n_ep + e]
                     a1[i * n_ep + e] = hid[(hidden + 1) * n_ep + e]

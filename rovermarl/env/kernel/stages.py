@@ -227,7 +227,7 @@ def act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite=False):
     ``checks.in_range``), so the tanh may leave out its NaN case."""
     p0 = hidden * n_ep
     for i in range(genomes.shape[0]):
-        _mlp(genomes, i, obs, cand, hidden, hid, rows, finite)
+        _mlp(genomes, i, obs, cand, n_ep, hidden, hid, rows, finite)
         q0 = i * n_ep
         for e in range(n_ep):                       # the outputs' sums, from the end of the scratch
             a0[U(q0 + e)] = hid[U(p0 + e)]
@@ -263,19 +263,18 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 
 @njit(**FAST)
-def _mlp(genomes, i, obs, cand, hidden, hid, rows, finite):
+def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
     """MLP of rover i over its E episodes.
 
-    genomes (N, G), obs (D*N*E,) feature-major (rover i's episodes at ``q0 = i*E`` .. ``q0+E-1``), cand (N, D):
-    each rover's input rows that may be nonzero, increasing, then -1 (``checks.input_rows``); hid ((H+2)*E,):
-    the hidden units, then -> the two outputs' sums (before their tanh) in its last 2E entries
+    genomes (N, G), obs (D*N*E,) feature-major (rover i's ``ep`` = E episodes at ``q0 = i*E`` .. ``q0+E-1``),
+    cand (N, D): each rover's input rows that may be nonzero, increasing, then -1 (``checks.input_rows``);
+    hid ((H+2)*E,): the hidden units, then -> the two outputs' sums (before their tanh) in its last 2E entries
     (:func:`act_flat` takes them from there and applies the tanh); rows (D,) int scratch, ``finite`` as in
     :func:`act_flat`. Inputs are summed in index order. Every array is read in place, never through a view (a
     rover's row, a slice), and the call takes few arrays: each view, and each array argument of a call, costs two
     atomic reference counts (without the views the rollout ran 1.02x, without a0 and a1 here 1.01-1.04x).
     """
     g = genomes.shape[1]
-    ep = hid.shape[0] // (hidden + 2)
     ne = ep * genomes.shape[0]
     q0 = i * ep
     d = obs.shape[0] // ne
