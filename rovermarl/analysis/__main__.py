@@ -1,7 +1,8 @@
 """``python -m rovermarl.analysis {export,claims,selectors} ...``: compact results of a sweep, and the claims report.
 
-- ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6]``: write the compact results of every finished job
-  (see :mod:`rovermarl.analysis.export`).
+- ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6] [--trust-config]``: write the compact results of
+  every finished job, all or nothing (see :mod:`rovermarl.analysis.export`); the Fig. 6 re-run builds only the
+  classes of rovermarl's config groups from the sweep's config unless ``--trust-config``.
 - ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
   (see :mod:`rovermarl.analysis.claims`).
 - ``selectors RESULTS_DIR [--against METHOD] [--x evals]``: the k-selector (or any method) comparison;
@@ -42,7 +43,8 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--generations", type=int, default=None, help="export only jobs with this budget")
     e.add_argument("--no-fig6", dest="fig6", action="store_false", help="skip the Fig. 6 data (re-runs one run)")
     e.add_argument("--trust-config", dest="trust", action="store_true",
-                   help="let the Fig. 6 re-run build classes outside rovermarl named by the sweep's configs")
+                   help="let the Fig. 6 re-run build any class the sweep's config names (default: only the "
+                   "classes of rovermarl's config groups, at their groups' nodes)")
     c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
     c.add_argument("results", type=Path, help="results dir written by `export`")
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
@@ -79,7 +81,7 @@ def main(argv=None) -> None:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against, args.x)
             print(text, end="")
-    except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config that cannot be rebuilt
+    except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config refused or not rebuilt
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
 

@@ -1,9 +1,16 @@
 """Export the compact results of a sweep (``python -m rovermarl.analysis export SWEEP_DIR RESULTS_DIR``): the
-format is described in :mod:`rovermarl.analysis.results`."""
+format is described in :mod:`rovermarl.analysis.results`.
+
+An export is all or nothing: it writes into a hidden dir next to ``RESULTS_DIR`` and moves the result into place
+only when everything succeeded (:func:`staged`), so a failure or a refused config leaves ``RESULTS_DIR`` as it was.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +21,7 @@ from rovermarl.analysis.rerun import mutated_rovers
 from rovermarl.analysis.results import COUPLING_KINDS, ResultsError
 from rovermarl.analysis.sweep import Job, fig6_job, find_jobs, labels
 from rovermarl.record.outputs import INVOCATIONS, LAUNCH, atomic_open, write_json
+from rovermarl.runner.trust import check_targets
 
 
 def coupling(curve, episodes: int) -> dict | None:
@@ -93,33 +101,106 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
 
 def export(sweep: Path, out: Path, generations: int | None = None, grid_points: int = GRID_POINTS,
            fig6: bool = True, log=print, trust: bool = False) -> dict:
-    """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``. The Fig. 6
-    data re-runs one run from its job's config: only with rovermarl's own classes, unless ``trust``."""
+    """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``: its job
+    dirs, ``compute.json`` and ``fig6.npz`` replace those of ``out``, whose other job dirs stay (exports add up).
+    The Fig. 6 data re-runs one run from its job's config: only with the classes of rovermarl's config groups
+    (:func:`~rovermarl.runner.trust.check_targets`, before anything is written), unless ``trust``. Nothing of
+    ``out`` changes unless the whole export succeeds."""
     jobs, notes = find_jobs(sweep)
     jobs = [j for j in jobs if j.finished and (generations is None or len(j.runs[0].score) == generations + 1)]
     if not jobs:
         raise ResultsError(f"no finished job in {sweep}" + (f" with generations={generations}" if generations else ""))
     out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise ResultsError(f"{out}: not a directory")
+    rerun = fig6_job(jobs) if fig6 else None
+    if rerun is not None and not trust:
+        check_targets(rerun.config, str(rerun.path))
     totals = {"jobs": {}, "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
     named = {}
     for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
         group = [j for j in jobs if j.setup == setup]
         named.update(zip((j.name for j in group), labels(group), strict=True))
-    for job in jobs:
-        label = named[job.name]
-        summary = export_job(job, label, out / job.name, grid_points)
-        totals["jobs"][job.name] = summary["compute"]
-        totals["team_evals"] += summary["compute"]["team_evals"]
-        totals["wall_time_s"] += summary["compute"]["wall_time_s"]
-        totals["agent_steps"] += summary["compute"]["agent_steps"]
-        log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
-    write_json(out / "compute.json", totals)
-    if fig6 and (job := fig6_job(jobs)) is not None:
-        info = export_fig6(job, out / "fig6.npz", trust=trust)
-        log(f"fig6: {info}")
+    with staged(out) as stage:
+        for job in jobs:
+            label = named[job.name]
+            summary = export_job(job, label, stage / job.name, grid_points)
+            totals["jobs"][job.name] = summary["compute"]
+            totals["team_evals"] += summary["compute"]["team_evals"]
+            totals["wall_time_s"] += summary["compute"]["wall_time_s"]
+            totals["agent_steps"] += summary["compute"]["agent_steps"]
+            log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
+        write_json(stage / "compute.json", totals)
+        if rerun is not None:
+            info = export_fig6(rerun, stage / "fig6.npz", trust=trust)
+            log(f"fig6: {info}")
     for note in notes:
         log(f"note: {note}")
     return totals
+
+
+@contextlib.contextmanager
+def staged(out: Path):
+    """A new hidden dir next to ``out`` (``.<name>.export-<pid>.tmp``) to write the export into. When the block
+    succeeds its entries go into place: it becomes ``out`` if there is none, else each entry replaces its namesake
+    in ``out`` (renamed aside, the new one renamed in, the old one removed) and the rest of ``out`` stays. When the
+    block fails the dir is removed (with the parents of ``out`` it made) and ``out`` is as it was."""
+    out = Path(out).resolve()
+    made = [p for p in (out.parent, *out.parent.parents) if not p.exists()][::-1]
+    out.parent.mkdir(parents=True, exist_ok=True)
+    stage = out.parent / f".{out.name}.export-{os.getpid()}.tmp"
+    _remove(stage)                               # a leftover of a killed export whose pid this process reuses
+    try:
+        stage.mkdir()
+        yield stage
+        _move_into(stage, out)
+    except BaseException:
+        _remove(stage)
+        for parent in reversed(made):
+            with contextlib.suppress(OSError):
+                parent.rmdir()
+        raise
+
+
+def _move_into(stage: Path, out: Path) -> None:
+    """Move the entries of ``stage`` into ``out`` (see :func:`staged`); on failure ``out`` is restored."""
+    if not out.exists():
+        try:
+            os.rename(stage, out)
+            return
+        except OSError:
+            if not out.is_dir():                 # else made meanwhile: merge into it
+                raise
+    moved: list[tuple[str, Path | None]] = []    # (entry, its old version set aside)
+    try:
+        for entry in sorted(p.name for p in stage.iterdir()):
+            dest, aside = out / entry, None
+            if dest.exists() or dest.is_symlink():
+                aside = out / f".{entry}.old-{os.getpid()}.tmp"
+                _remove(aside)
+                os.rename(dest, aside)
+            moved.append((entry, aside))
+            os.rename(stage / entry, dest)
+    except BaseException:
+        for entry, aside in reversed(moved):     # put the new entries back into the stage, the old ones in place
+            if not (stage / entry).exists() and ((out / entry).exists() or (out / entry).is_symlink()):
+                os.rename(out / entry, stage / entry)
+            if aside is not None:
+                os.rename(aside, out / entry)
+        raise
+    for _, aside in moved:
+        if aside is not None:
+            _remove(aside)
+    stage.rmdir()
+
+
+def _remove(path: Path) -> None:
+    """Remove a file, link or dir tree if it exists."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
 
 
 # ---- Fig. 6 data ---------------------------------------------------------------------------------------------------

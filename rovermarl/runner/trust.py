@@ -1,40 +1,145 @@
 """Configs read back from a results directory run no code of their own.
 
-A job dir's ``.hydra/config.yaml`` (or ``config.yaml``) names the classes that built its runs (``_target_``). A read
-path that rebuilds a run from it (``python -m rovermarl.analysis export`` re-runs one run for the Fig. 6 data)
-first checks every ``_target_``: only rovermarl's own (``rovermarl.``) pass, unless the caller trusts the config
-(``--trust-config``: e.g. your own plug-in on ``hydra.searchpath``). Nothing is imported before the check.
+A job dir's ``.hydra/config.yaml`` (or ``config.yaml``) names the classes that built its runs (``_target_``), and
+Hydra's ``instantiate`` imports whatever a ``_target_`` names, attribute chains included
+(``rovermarl.record.outputs.np.save`` is ``numpy.save``). A read path that rebuilds a run from such a config
+(``python -m rovermarl.analysis export`` re-runs one run for the Fig. 6 data) first checks it against an allow-list
+derived from the packaged config groups (:data:`~rovermarl.resources.CONF_DIR`, :func:`groups`): a ``_target_``
+may only sit at the root of a group that has classes (``config[group]._target_``, e.g. ``k``) and must be exactly
+one of the classes that group's options name (``conf/k/*.yaml``); an algorithm's option that takes a group's node
+(``k: ${k}`` in ``conf/algorithm/cc11es.yaml``) lets that key hold one of the group's classes too
+(``algorithm.k._target_``). Any other ``_target_`` (in an operator's arguments, in a list, under ``_args_``, at the
+top level, under an unknown key) is refused, as is an interpolation that resolves to a ``_target_`` or to another
+interpolation: the check reads the config as the run would, resolved. Configs written before the ``algorithm``
+group (``rovermarl.evolution.*``) pass as :func:`rovermarl.runner.chunk.upgrade` rewrites them. The caller may
+trust a config instead (``--trust-config``: e.g. your own plug-in on ``hydra.searchpath``). Nothing is imported
+before the check: it only reads YAML.
 """
 
 from __future__ import annotations
 
+import functools
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
 from omegaconf import OmegaConf
 
 from rovermarl import errors
+from rovermarl.resources import CONF_DIR
 
-TRUSTED = ("rovermarl.",)
+REFUSE = "a results directory may not run code; pass --trust-config if you trust it"
+LEGACY = ("rovermarl.evolution.", "rovermarl.algorithms.operators.")  # as rovermarl.runner.chunk.upgrade renames
+_GROUP_NODE = re.compile(r"\$\{(\w+)\}")                               # ``k: ${k}`` in an algorithm's option
 
 
-def targets(node, path: str = "") -> list[tuple[str, str]]:
-    """Every ``(key, _target_)`` in a config tree (a DictConfig or plain containers), e.g. ``("mutation", "...")``."""
-    if OmegaConf.is_config(node):
-        node = OmegaConf.to_container(node, resolve=False)
-    found = []
-    if isinstance(node, dict):
-        if "_target_" in node:
-            found.append((path or "config", str(node["_target_"])))
+@dataclass(frozen=True)
+class Groups:
+    """The allow-list: ``classes[group]``, the ``_target_`` the group's options name; ``slots[(group, target)]``,
+    the keys of such a node that hold another group's node (``{"k": "k", "mutation": "mutation", ...}``)."""
+
+    classes: dict[str, frozenset[str]]
+    slots: dict[tuple[str, str], dict[str, str]]
+
+
+@functools.cache
+def groups(conf_dir: Path = CONF_DIR) -> Groups:
+    """The allow-list of ``conf_dir``: every ``<group>/<option>.yaml`` whose root has a ``_target_``."""
+    options = []
+    for path in sorted(conf_dir.glob("*/*.yaml")):
+        node = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
+        if isinstance(node, dict) and isinstance(node.get("_target_"), str):
+            options.append((path.parent.name, node))
+    classes: dict[str, set[str]] = {}
+    for group, node in options:
+        classes.setdefault(group, set()).add(node["_target_"])
+    slots: dict[tuple[str, str], dict[str, str]] = {}
+    for group, node in options:
         for key, value in node.items():
-            found += targets(value, f"{path}.{key}" if path else str(key))
-    elif isinstance(node, list):
-        for i, value in enumerate(node):
-            found += targets(value, f"{path}[{i}]")
-    return found
+            m = _GROUP_NODE.fullmatch(value) if isinstance(value, str) else None
+            if m and m[1] in classes:
+                slots.setdefault((group, node["_target_"]), {})[str(key)] = m[1]
+    return Groups({g: frozenset(c) for g, c in sorted(classes.items())}, slots)
 
 
 def check_targets(config, source: str) -> None:
-    """Raise :class:`~rovermarl.errors.ConfigError` (one line) if ``config`` read from ``source`` names a
-    ``_target_`` outside rovermarl."""
-    for key, target in targets(config):
-        if not target.startswith(TRUSTED):
-            raise errors.ConfigError(f"{key}._target_", target, f"is outside rovermarl, in {source}: a results "
-                                     "directory may not run code; pass --trust-config if you trust it")
+    """Raise :class:`~rovermarl.errors.ConfigError` (one line: the key, the value, ``source``) unless every
+    ``_target_`` of ``config`` (a DictConfig or plain containers, read from ``source``) is a class of the config
+    group at whose root it sits; the same holds for ``config`` resolved, which has no interpolation left."""
+    try:
+        cfg = config if OmegaConf.is_config(config) else OmegaConf.create(config)
+    except Exception as e:  # an odd container: not a config
+        raise errors.ConfigError("config", type(config).__name__, f"is not a config ({type(e).__name__}), in "
+                                 f"{source}") from None
+    raw = OmegaConf.to_container(cfg, resolve=False)
+    if not isinstance(raw, dict):
+        raise errors.ConfigError("config", type(raw).__name__, f"must be a mapping, in {source}")
+    allow = groups()
+    legacy = "algorithm" not in raw and "k" in raw
+    _walk(raw, "", None, allow, legacy, source)
+    strings = dict(_strings(raw, ""))
+    if not any("${" in value for value in strings.values()):
+        return
+    try:
+        resolved = OmegaConf.to_container(cfg, resolve=True)
+    except Exception as e:  # any resolution failure, in one line
+        key = str(getattr(e, "full_key", "") or "config")
+        first = (str(e).splitlines() or [type(e).__name__])[0]
+        raise errors.ConfigError(key, strings.get(key, "?"), f"cannot be resolved ({first}), in {source}") from None
+    _walk(resolved, "", None, allow, legacy, source)
+    for key, value in _strings(resolved, ""):
+        if "${" in value:
+            raise errors.ConfigError(key, value, f"resolves to another interpolation, in {source}: {REFUSE}")
+
+
+def _walk(node, path: str, group: str | None, allow: Groups, legacy: bool, source: str) -> None:
+    """Refuse a ``_target_`` of ``node`` (at ``path``) unless ``node`` is the root of a node of ``group``."""
+    if isinstance(node, list):
+        for i, value in enumerate(node):
+            _walk(value, f"{path}[{i}]", None, allow, legacy, source)
+        return
+    if not isinstance(node, dict):
+        return
+    slots: dict[str, str] = {}
+    if "_target_" in node:
+        key, target = f"{path or 'config'}._target_", node["_target_"]
+        if group is None:
+            raise errors.ConfigError(key, target, "only the node of a config group (" + ", ".join(allow.classes)
+                                     + f") may name a class, in {source}: {REFUSE}")
+        target = _canonical(target, legacy)
+        if target not in allow.classes[group]:
+            where = ("is outside rovermarl" if not str(target).startswith("rovermarl.") else
+                     f"is not a class of the config group {group} ({', '.join(sorted(allow.classes[group]))})")
+            raise errors.ConfigError(key, node["_target_"], f"{where}, in {source}: {REFUSE}")
+        slots = allow.slots.get((group, target), {})
+    for key, value in node.items():
+        if key == "_target_":
+            continue
+        inner = (str(key) if str(key) in allow.classes else None) if not path else slots.get(str(key))
+        _walk(value, _join(path, key), inner, allow, legacy, source)
+
+
+def _canonical(target, legacy: bool):
+    """``target`` as the runner builds it (a pre-``algorithm`` config's ``rovermarl.evolution.*`` renamed)."""
+    if legacy and isinstance(target, str) and target.startswith(LEGACY[0]):
+        return LEGACY[1] + target[len(LEGACY[0]):]
+    return target
+
+
+def _strings(node, path: str):
+    """Every ``(key, string value)`` of a plain config tree."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _strings(value, _join(path, key))
+    elif isinstance(node, list):
+        for i, value in enumerate(node):
+            yield from _strings(value, f"{path}[{i}]")
+    elif isinstance(node, str):
+        yield path or "config", node
+
+
+def _join(path: str, key) -> str:
+    """``path.key``, the key quoted if it would not read as one word on one line."""
+    key = str(key)
+    key = key if key and key.isprintable() and not any(c.isspace() for c in key) else repr(key)
+    return f"{path}.{key}" if path else key
