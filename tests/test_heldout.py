@@ -35,19 +35,19 @@ def test_heldout_is_the_final_team_on_its_own_initial_conditions(tmp_path):
         assert summary["heldout_score"][str(seed)] == want
 
 
-def test_a_run_finished_without_heldout_gets_it_on_relaunch(tmp_path):
+def test_an_edited_run_json_is_recomputed_not_believed(tmp_path, caplog):
     cfg = make_cfg(*QUICK, "k=adaptive")
     first = run_job(cfg, tmp_path)
     path = tmp_path / "runs/seed_001/run.json"
     meta = json.loads(path.read_text())
-    old = {k: v for k, v in meta.items() if k != "heldout_score"}                   # as written before held-out
-    path.write_text(json.dumps(old))
-    summary = json.loads((tmp_path / "summary.json").read_text())
-    (tmp_path / "summary.json").write_text(json.dumps({k: v for k, v in summary.items()
-                                                       if "heldout" not in k}))
-    again = run_job(cfg, tmp_path)
-    assert json.loads(path.read_text()) == meta
-    assert again["heldout_score"] == first["heldout_score"]
+    path.write_text(json.dumps({**meta, "heldout_score": 99.0}))          # edited by hand: its checksum fails
+    (tmp_path / "summary.json").unlink()
+    with caplog.at_level("WARNING", logger="rovermarl"):
+        again = run_job(cfg, tmp_path)
+    warned = [r.message for r in caplog.records if r.levelname == "WARNING"]
+    assert len(warned) == 1 and "does not match its own checksum; recomputing the run" in warned[0]
+    assert again["heldout_score"] == first["heldout_score"] and again["final_score"] == first["final_score"]
+    assert json.loads(path.read_text())["heldout_score"] == meta["heldout_score"]
 
 
 @pytest.mark.parametrize("over", [(), ("evaluation.fresh_ic=true",)])

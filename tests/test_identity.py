@@ -6,6 +6,7 @@ import json
 import numpy as np
 
 from rovermarl.record.checkpoint import RunRecord
+from rovermarl.record.outputs import write_run_json
 from rovermarl.runner.chunk import advance, parts, to_plain
 from rovermarl.runner.identity import config_hash
 from rovermarl.runner.job import run_job
@@ -106,10 +107,10 @@ def test_stale_summary_wrong_seed_checkpoint_and_nan_curve_are_not_trusted(tmp_p
     np.savez(job / "runs/seed_001/curve.npz", **arrays)
     meta = json.loads((job / "runs/seed_001/run.json").read_text())
     del meta["files"]                                                     # as a run.json from before the checksums
-    (job / "runs/seed_001/run.json").write_text(json.dumps(meta))
+    write_run_json(job / "runs/seed_001", meta)                           # even with a valid checksum of its own
     with caplog.at_level("WARNING", logger="rovermarl"):
         summary = run_job(make_cfg(*BASE, "seeds=2"), job)
-    assert "holds non-finite scores; recomputing the run" in caplog.text
+    assert "lists no files to check; recomputing the run" in caplog.text
     assert np.isfinite(list(summary["final_score"].values())).all()
     plain = to_plain(make_cfg(*BASE, "seeds=3", "seed=0"))
     rec = RunRecord(0, 300, parts(plain).algorithm.series)                 # seed 0's checkpoint in seed 2's dir

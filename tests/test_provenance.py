@@ -3,6 +3,7 @@ recomputed under resume=strict."""
 
 import json
 
+from rovermarl.record.outputs import write_run_json
 from rovermarl.record.provenance import PACKAGES, provenance
 from rovermarl.runner.job import run_job
 from tests.conftest import make_cfg
@@ -26,7 +27,7 @@ def test_runs_of_other_code_are_reported_kept_and_recomputed_when_strict(tmp_pat
     meta = json.loads(path.read_text())
     meta["provenance"]["commit"] = "0" * 40
     meta["final_score"] = -1.0                                   # marks the old file
-    path.write_text(json.dumps(meta))
+    write_run_json(path.parent, meta)                            # as that code wrote it: its checksum holds
     with caplog.at_level("INFO", logger="rovermarl"):
         run_job(make_cfg(*OVER), job)
     line = [r.message for r in caplog.records if "other code" in r.message]

@@ -99,8 +99,9 @@ class RunRecord:
                 os.unlink(new)
 
     @classmethod
-    def load(cls, path: Path, config_hash: str) -> RunRecord:
-        """Read and verify a checkpoint; raises :class:`CheckpointError` naming the file."""
+    def load(cls, path: Path, config_hash: str, generations: int | None = None) -> RunRecord:
+        """Read and verify a checkpoint (of a run of ``generations``, if given); raises :class:`CheckpointError`
+        naming the file. Its numbers are checked against each other and the config before anything is allocated."""
         path = Path(path)
         try:
             data = path.read_bytes()
@@ -112,20 +113,40 @@ class RunRecord:
             raise CheckpointError(f"{path}: not a rovermarl checkpoint (bad header)")
         if hashlib.sha256(payload).hexdigest().encode() != parts[1]:
             raise CheckpointError(f"{path}: checksum mismatch (truncated or corrupt, {len(data)} bytes)")
-        with np.load(io.BytesIO(payload)) as z:
-            arrays = {key: z[key] for key in z.files}
-        meta = json.loads(str(arrays.pop("_meta")))
-        if meta["config_hash"] != config_hash:
-            raise CheckpointError(f"{path}: written by a different config (hash {meta['config_hash'][:12]}, "
-                                  f"expected {config_hash[:12]})")
-        rec = cls(meta["seed"], meta["generations"])
-        rec.generation = meta["generation"]
-        rec.score[:len(arrays["score"])] = arrays["score"]
-        rec.history = {key: _full(arrays[key], rec.generations) for key in meta["history_keys"]}
-        rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
-        rec.events = {key: [arrays[key]] for key in meta["event_keys"]}
-        rec.state = _decode(meta["state"], arrays)
+        try:
+            with np.load(io.BytesIO(payload)) as z:
+                arrays = {key: z[key] for key in z.files}
+            meta = json.loads(str(arrays.pop("_meta")))
+            if meta["config_hash"] != config_hash:
+                raise CheckpointError(f"{path}: written by a different config (hash {meta['config_hash'][:12]}, "
+                                      f"expected {config_hash[:12]})")
+            _check_sizes(meta, arrays, generations)
+            rec = cls(meta["seed"], meta["generations"])
+            rec.generation = meta["generation"]
+            rec.score[:len(arrays["score"])] = arrays["score"]
+            rec.history = {key: _full(arrays[key], rec.generations) for key in meta["history_keys"]}
+            rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
+            rec.events = {key: [arrays[key]] for key in meta["event_keys"]}
+            rec.state = _decode(meta["state"], arrays)
+        except CheckpointError:
+            raise
+        except Exception as e:  # noqa: BLE001 - any malformed content is a checkpoint that cannot be used
+            raise CheckpointError(f"{path}: malformed content ({type(e).__name__}: {str(e)[:80]})") from None
         return rec
+
+
+def _check_sizes(meta: dict, arrays: dict, generations: int | None) -> None:
+    """Raise ValueError unless the checkpoint's counts agree with each other, its arrays and the config."""
+    total, done = meta["generations"], meta["generation"]
+    if not all(isinstance(x, int) and not isinstance(x, bool) for x in (meta["seed"], total, done)):
+        raise ValueError("seed, generations and generation must be integers")
+    if generations is not None and total != generations:
+        raise ValueError(f"generations={total}, the config asks for {generations}")
+    if not 0 < done <= total or arrays["score"].shape != (done + 1,):
+        raise ValueError(f"generation {done} of {total} with {arrays['score'].shape[0]} scores")
+    for key in meta["history_keys"]:
+        if arrays[key].ndim < 1 or len(arrays[key]) != done:
+            raise ValueError(f"series {key!r} holds {len(arrays[key])} generations, not {done}")
 
 
 def _full(done: np.ndarray, generations: int) -> np.ndarray:
@@ -149,13 +170,14 @@ def previous(path: Path) -> Path:
     return Path(path).with_suffix(".prev.bin")
 
 
-def resume(path: Path, config_hash: str, warn) -> RunRecord | None:
-    """The newest good checkpoint at ``path`` (or its ``.prev``), or None; ``warn(msg)`` explains fallbacks."""
+def resume(path: Path, config_hash: str, warn, generations: int | None = None) -> RunRecord | None:
+    """The newest good checkpoint at ``path`` (or its ``.prev``) of a run of ``generations``, or None;
+    ``warn(msg)`` explains fallbacks."""
     for candidate in (Path(path), previous(path)):
         if not candidate.exists():
             continue
         try:
-            return RunRecord.load(candidate, config_hash)
+            return RunRecord.load(candidate, config_hash, generations)
         except CheckpointError as e:
             warn(f"{e}; ignoring it")
     return None

@@ -21,6 +21,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import logging
 import os
 import secrets
 from pathlib import Path
@@ -29,6 +30,8 @@ import numpy as np
 
 from rovermarl.record.events import FILES as EVENT_FILES
 from rovermarl.record.provenance import provenance
+
+log = logging.getLogger("rovermarl")
 
 
 @contextlib.contextmanager
@@ -73,12 +76,21 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
         write_rrd(out / "run.rrd", result)
     names = ["curve.npz", "genomes.npy", "initial_conditions.npz", *(f"{f}.npz" for f in EVENT_FILES)]
     names += ["run.rrd"] if write_rrd is not None else []
-    write_json(out / "run.json", {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
-                                  "final_score": float(result["score"][-1]),
-                                  "heldout_score": float(result["heldout_score"]), "config_hash": config_hash,
-                                  "files": {name: digest(out / name) for name in names},
-                                  "provenance": provenance()})
+    write_run_json(out, {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
+                         "final_score": float(result["score"][-1]),
+                         "heldout_score": float(result["heldout_score"]), "config_hash": config_hash,
+                         "files": {name: digest(out / name) for name in names}, "provenance": provenance()})
     return out
+
+
+def write_run_json(out: Path, meta: dict) -> None:
+    """``run.json`` with its own checksum (``"checksum"``: SHA-256 of the rest, canonical JSON)."""
+    meta = {key: value for key, value in meta.items() if key != "checksum"}
+    write_json(Path(out) / "run.json", {**meta, "checksum": _checksum(meta)})
+
+
+def _checksum(meta: dict) -> str:
+    return hashlib.sha256(json.dumps(meta, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
 
 
 def digest(path: Path) -> dict:
@@ -91,9 +103,16 @@ def digest(path: Path) -> dict:
 
 
 def verify(out: Path, meta: dict) -> str | None:
-    """None if every file ``run.json`` lists (``meta["files"]``) is there with its size and checksum, else what is
-    wrong, naming the file. Runs finished before run.json listed files verify by their run.json alone."""
-    for name, want in (meta.get("files") or {}).items():
+    """None if ``run.json`` (``meta``) verifies against its own checksum and every file it lists (``meta["files"]``)
+    is there with its size and checksum, else what is wrong, naming the file."""
+    run_json = Path(out) / "run.json"
+    if meta.get("checksum") != _checksum({k: v for k, v in meta.items() if k != "checksum"}):
+        return f"{run_json} does not match its own checksum"
+    if not isinstance(meta.get("files"), dict) or "curve.npz" not in meta["files"]:
+        return f"{run_json} lists no files to check"
+    for name, want in meta["files"].items():
+        if not isinstance(want, dict) or Path(name).name != name:
+            return f"{run_json} lists {name!r} wrongly"
         path = Path(out) / name
         if not path.is_file():
             return f"{path} is missing"
@@ -180,7 +199,14 @@ def close_launch(job_dir: Path, record: dict | None = None) -> None:
     if record is None:
         if not progress.is_file():
             return
-        record = {**json.loads(progress.read_text()), "interrupted": True}
+        try:
+            record = {**json.loads(progress.read_text()), "interrupted": True}
+            float(record["wall_time_s"]), int(record["team_evals"])
+        except (OSError, ValueError, TypeError, KeyError) as e:
+            log.warning("%s is unreadable (%s): the compute of the launch that left it is not counted",
+                        progress, type(e).__name__)
+            progress.unlink(missing_ok=True)
+            return
     with open(job_dir / INVOCATIONS, "a") as f:
         f.write(json.dumps(record) + "\n")
     progress.unlink(missing_ok=True)

@@ -31,6 +31,7 @@ from rovermarl.record.outputs import (
     summarize,
     verify,
     write_json,
+    write_run_json,
 )
 from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
@@ -87,7 +88,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         log.info("%s: %d of %d runs already finished, skipped", name, len(outcomes), len(seeds))
     summary_path = job_dir / "summary.json"
     if not todo and summary_path.exists():
-        summary = json.loads(summary_path.read_text())
+        summary = _read_summary(summary_path, name)
         if ("heldout_score" in summary and summary.get("seeds") == seeds and
                 set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in cfg.levels}):
             return summary                                                 # else stale: rebuilt below
@@ -143,17 +144,26 @@ def _record(cfg, job_dir: Path, seed: int, key: str, series, name: str) -> RunRe
     """Run ``seed``'s record: from its checkpoint when it has a usable one, else fresh."""
     out = run_dir(job_dir, seed)
     problems: list[str] = []
-    rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append) if cfg.resume else None
+    rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append, cfg.generations) if cfg.resume else None
     if rec is not None and rec.seed != seed:
         problems.append(f"{out / 'checkpoint.bin'} holds seed {rec.seed}, not {seed}; ignoring it")
         rec = None
-    for problem in problems:
-        log.warning("%s: %s", name, problem)
-    if rec is not None:
+    if problems:                                                        # one line, whatever went wrong
+        log.warning("%s: %s; seed %d %s", name, "; ".join(problems), seed,
+                    "starts from scratch" if rec is None else f"resumes at generation {rec.generation}")
+    elif rec is not None:
         log.info("%s: seed %d resumes at generation %d", name, seed, rec.generation)
-    elif problems:
-        log.warning("%s: seed %d has no usable checkpoint; it starts from scratch", name, seed)
     return rec or RunRecord(seed, cfg.generations, series)
+
+
+def _read_summary(path: Path, name: str) -> dict:
+    """The job's summary.json, or {} (rebuilt from the runs) if it cannot be read."""
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, ValueError) as e:
+        log.warning("%s: %s is unreadable (%s); rebuilding it from the runs", name, path, type(e).__name__)
+        return {}
+    return summary if isinstance(summary, dict) else {}
 
 
 def _no_curve(out: Path) -> str | None:
@@ -189,7 +199,7 @@ def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
 def _backfill(out: Path, meta: dict, built, seed: int) -> float:
     """The held-out score of a run finished before runs recorded one, from its final team; added to its run.json."""
     score = heldout_score(built, seed, np.load(out / "genomes.npy"))
-    write_json(out / "run.json", {**meta, "heldout_score": score})
+    write_run_json(out, {**meta, "heldout_score": score})
     return score
 
 
