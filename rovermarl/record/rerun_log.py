@@ -24,14 +24,14 @@ scores, k and the other series, the bandit's probabilities (if any) and the occu
 
 from __future__ import annotations
 
-import contextlib
-import os
-import secrets
 from pathlib import Path
 
 import numpy as np
 
 from rovermarl import palette
+from rovermarl.record.outputs import atomic_open
+
+FLUSH_S = 60.0                                       # the SDK's flush into memory; it never waits on a disk
 
 
 def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps: bool = True,
@@ -49,27 +49,25 @@ def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps:
     path = Path(path)
     series = tuple(s for s in series if s.name in result)
     last = len(result["score"]) - 1
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")     # this writer's own name
     rec = rr.RecordingStream("rovermarl", recording_id=recording_id or path.parent.name)
-    rec.save(str(tmp))
-    done = False
-    try:
+    stream = rec.binary_stream()      # to memory: the driver writes the file, so an I/O error is an OSError here
+    try:                              # (Rerun's own file sink blocks for ever in its flush on a full disk)
+        def drain() -> None:          # encode what was sent (the SDK's batches stay small); one read at the end:
+            stream.flush(timeout_sec=FLUSH_S)          # each read is a whole .rrd (header and footer) of its own
         vmax = occupancy_vmax(result)
         rec.send_blueprint(blueprint(world, series, last, _ranges(result, series), vmax), make_active=True,
                            make_default=True)
         _scene(rec, rr, world)
         _occupancy(rec, rr, result, world, last, vmax)
-        _metrics(rec, rr, result, series, every)
+        drain()
+        _metrics(rec, rr, result, series, every, drain)
         _trajectories(rec, rr, result, steps)
         rec.log("legend", rr.TextDocument(legend(world, series, vmax), media_type="text/markdown"), static=True)
-        rec.flush()
-        done = True
+        data = stream.read(flush=True, flush_timeout_sec=FLUSH_S)
+        with atomic_open(path) as f:
+            f.write(data or b"")
     finally:
         rec.disconnect()
-        if not done:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-    os.replace(tmp, path)
     return path
 
 
@@ -192,13 +190,13 @@ def _columns(rr, generations) -> list:
 SLICE = 20_000                                      # rows per send: the SDK's buffers stay small on long runs
 
 
-def _send_scalars(rec, rr, entity: str, generations: np.ndarray, values: np.ndarray) -> None:
-    """``values`` (M,) at ``generations`` (M,) on the generation timeline, in slices flushed to the file one by one
-    (one ``send_columns`` of a million rows holds several hundred MB in the SDK)."""
+def _send_scalars(rec, rr, entity: str, generations: np.ndarray, values: np.ndarray, drain) -> None:
+    """``values`` (M,) at ``generations`` (M,) on the generation timeline, in slices written to the file one by one
+    by ``drain()`` (one ``send_columns`` of a million rows holds several hundred MB in the SDK)."""
     for i in range(0, len(generations), SLICE):
         rec.send_columns(entity, indexes=_columns(rr, generations[i:i + SLICE]),
                          columns=rr.Scalars.columns(scalars=np.asarray(values[i:i + SLICE], dtype=np.float64)))
-        rec.flush()
+        drain()
 
 
 def _kept(s, values: np.ndarray) -> np.ndarray:
@@ -211,24 +209,25 @@ def _kept(s, values: np.ndarray) -> np.ndarray:
     return np.ones(len(values), dtype=bool)
 
 
-def _metrics(rec, rr, result, series, every) -> None:
+def _metrics(rec, rr, result, series, every, drain) -> None:
     score = np.asarray(result["score"], dtype=np.float64)
     last = len(score) - 1
     gens = np.unique(np.r_[np.arange(0, last + 1, every), last])
     rec.log("metrics/score", rr.SeriesLines(names="score", colors=palette.rgb(palette.SCORE), widths=2.0,
                                             interpolation_mode="StepAfter"), static=True)
-    _send_scalars(rec, rr, "metrics/score", gens, score[gens])
+    _send_scalars(rec, rr, "metrics/score", gens, score[gens], drain)
     after = gens[gens >= 1]                                              # generation g's entry: index g - 1
     for s in series:
         values = np.asarray(result[s.name])[after - 1]
         if s.shape == ():
-            _one_series(rec, rr, s, s.path, s.name, after, values, palette.series_hex(s.name))
+            _one_series(rec, rr, s, s.path, s.name, after, values, palette.series_hex(s.name), drain)
         else:
             for c, column in enumerate(s.columns or [str(c) for c in range(s.shape[0])]):
-                _one_series(rec, rr, s, f"{s.path}/{column}", column, after, values[:, c], palette.rover_hex(c))
+                _one_series(rec, rr, s, f"{s.path}/{column}", column, after, values[:, c], palette.rover_hex(c),
+                            drain)
 
 
-def _one_series(rec, rr, s, entity, name, gens, values, colour) -> None:
+def _one_series(rec, rr, s, entity, name, gens, values, colour, drain) -> None:
     keep = _kept(s, values.astype(np.float64))
     if np.dtype(s.dtype).kind == "f":                    # one sample per generation: dots
         style = rr.SeriesPoints(names=name, colors=palette.rgb(colour), marker_sizes=1.5)
@@ -237,7 +236,7 @@ def _one_series(rec, rr, s, entity, name, gens, values, colour) -> None:
                                aggregation_policy="Average")         # zoomed out: the mean over each pixel
     rec.log(entity, style, static=True)
     if keep.any():
-        _send_scalars(rec, rr, entity, gens[keep], values[keep])
+        _send_scalars(rec, rr, entity, gens[keep], values[keep], drain)
 
 
 def occupancy_vmax(result) -> float:
