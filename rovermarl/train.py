@@ -3,38 +3,53 @@
 Every job of an invocation is composed and validated before anything runs (and before Ray starts); a bad config
 exits with status 2 and one line on stderr. Output dirs are named after the command's overrides
 (``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it. Ctrl-C (SIGINT) and
-SIGTERM stop it with one line and exit 130 / 143 (``HYDRA_FULL_ERROR=1``: the traceback too); Ray is shut down.
+SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``: the
+traceback too); Ray is shut down and no process it started outlives the launch.
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
-import errno
 import os
 import signal
 import sys
-import tempfile
-import threading
-from pathlib import Path
 
-from hydra.core.hydra_config import HydraConfig
-from omegaconf import DictConfig, OmegaConf
 
-from rovermarl import hydra_compat
-from rovermarl.algorithms.base import AlgorithmError
-from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname
-from rovermarl.errors import ConfigError
-from rovermarl.parallel import BackendError
-from rovermarl.record import lock
-from rovermarl.resources import CONF_DIR
-from rovermarl.runner.job import run_job
-from rovermarl.runner.validate import validate
+def _before_work(signum, frame):
+    """SIGINT / SIGTERM while this module imports: nothing is started or written yet, so end at once, in one line."""
+    term = signum == signal.SIGTERM
+    os.write(2, f"rovermarl.train: {'terminated' if term else 'interrupted'}\n".encode())
+    os._exit(143 if term else 130)
+
+
+if __name__ == "__main__":
+    for _sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(_sig) is not signal.SIG_IGN:              # an ignored signal (nohup) stays ignored
+            signal.signal(_sig, _before_work)
+
+import argparse  # noqa: E402 - after the handlers above
+import contextlib  # noqa: E402
+import errno  # noqa: E402
+import tempfile  # noqa: E402
+import threading  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from hydra.core.hydra_config import HydraConfig  # noqa: E402
+from omegaconf import DictConfig, OmegaConf  # noqa: E402
+
+from rovermarl import hydra_compat  # noqa: E402
+from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
+from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname  # noqa: E402
+from rovermarl.errors import ConfigError  # noqa: E402
+from rovermarl.parallel import BackendError  # noqa: E402
+from rovermarl.record import lock  # noqa: E402
+from rovermarl.resources import CONF_DIR  # noqa: E402
+from rovermarl.runner.job import run_job  # noqa: E402
+from rovermarl.runner.validate import validate  # noqa: E402
 
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
 PROG = "rovermarl.train"
 BUSY = 75                                                              # EX_TEMPFAIL: another launch holds the dir
-STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM)   # one line, not a traceback
+STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM)   # one line
 
 
 def task(cfg: DictConfig) -> float:
@@ -59,7 +74,7 @@ def task(cfg: DictConfig) -> float:
 
 
 class Stop(SystemExit):
-    """The launch ends with one line on stderr and ``code``; :func:`_run` prints it once Ray is down, so that nothing
+    """The launch ends with one line on stderr and ``code``; :func:`main` prints it once Ray is down, so that nothing
     Ray logs while it shuts down comes after it."""
 
     def __init__(self, line: str, code: int = 1):
@@ -113,11 +128,18 @@ def connect(cfgs: list[DictConfig]) -> None:
     on_ray = [c for c in cfgs if c.parallel.backend == "ray"]
     if not on_ray:
         return
+    if not on_ray[0].ray.address:                      # an embedded Ray: its CPUs are known before it starts
+        _check_shards(on_ray, on_ray[0].ray.num_cpus or os.cpu_count() or 1)
     import ray
 
     from rovermarl.parallel.ray_backend import ensure_ray
     try:
         ensure_ray(on_ray[0].ray)
+    except SystemExit as e:                            # Ray's own SIGTERM handler, set while it starts
+        if e.code != signal.SIGTERM:
+            raise
+        _SIGNALS.append(signal.SIGTERM)
+        raise Terminated() from None
     except Exception as e:  # Ray raises several types; all end the same way
         where = on_ray[0].ray.address or "local"
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]
@@ -125,38 +147,39 @@ def connect(cfgs: list[DictConfig]) -> None:
                 "ray.address=auto, elsewhere export RAY_AUTH_MODE=token and the cluster's token."
                 if on_ray[0].ray.address and "nothing answers" not in first else "")
         raise ConfigError("ray.address", where, f"cannot start or join Ray: {first}.{hint}") from None
-    cpus = int(ray.cluster_resources().get("CPU", 0))
-    for c in on_ray:
+    finally:
+        _handle_signals()                              # Ray's init replaced the SIGTERM handler
+    _check_shards(on_ray, int(ray.cluster_resources().get("CPU", 0)))
+
+
+def _check_shards(cfgs: list[DictConfig], cpus: int) -> None:
+    for c in cfgs:
         if c.parallel.get("ic_shards", 1) > cpus:      # each shard actor holds a CPU for the whole run
             raise ConfigError("parallel.ic_shards", c.parallel.ic_shards, f"must be at most the {cpus} CPUs of Ray")
 
 
 def main(argv: list[str] | None = None) -> None:
+    """Compose and validate every job, hold the output dir, start Ray, run the jobs; SIGINT and SIGTERM at any
+    point end it with one line and exit 130 / 143, Ray and its processes gone."""
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
-    try:
-        args, parser, cfgs = check(argv)
-        ray = sys.modules.get("ray")
-        ours = ray is None or not ray.is_initialized()              # a Ray this call starts is this call's to stop
-        with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
-            connect(cfgs)
-            _run(args, parser, ours)
-    except ConfigError as e:
-        print(f"{PROG}: error: {e}", file=sys.stderr)
-        sys.exit(2)
-    except lock.Locked as e:
-        print(f"{PROG}: error: {e}", file=sys.stderr)
-        sys.exit(BUSY)
-
-
-def _run(args, parser, stop_ray: bool = True) -> None:
-    """Hydra's main, with SIGINT and SIGTERM turned into one line and Ray shut down however it ends."""
-    previous = {sig: signal.signal(sig, _signalled) for sig in (signal.SIGINT, signal.SIGTERM)}   # after Ray's init
+    ray = sys.modules.get("ray")
+    ours = ray is None or not ray.is_initialized()                  # a Ray this call starts is this call's to stop
+    previous = _handle_signals()
     hook, sys.unraisablehook = sys.unraisablehook, _unraisable
     _SIGNALS.clear()
     _REARM.clear()
+    if ours:
+        _adopt_orphans()
     stop = None
     try:
-        hydra_compat.run(args, parser, task, str(CONF_DIR))
+        args, parser, cfgs = check(argv)
+        with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
+            connect(cfgs)
+            hydra_compat.run(args, parser, task, str(CONF_DIR))
+    except ConfigError as e:
+        stop = Stop(f"{PROG}: error: {e}", 2)
+    except lock.Locked as e:
+        stop = Stop(f"{PROG}: error: {e}", BUSY)
     except KeyboardInterrupt:
         if os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
@@ -168,7 +191,7 @@ def _run(args, parser, stop_ray: bool = True) -> None:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         sys.unraisablehook = hook
-        if stop_ray:
+        if ours:
             with _quiet_stderr() if stop or _SIGNALS else contextlib.nullcontext():   # Ray's shutdown after a
                 _stop_ray()                                                          # fault is noise
     if _SIGNALS:                  # also when the interrupt was swallowed (raised in a finalizer) and the work went on
@@ -178,6 +201,26 @@ def _run(args, parser, stop_ray: bool = True) -> None:
     if stop:
         print(stop.line, file=sys.stderr)
         sys.exit(stop.code)
+
+
+def _handle_signals() -> dict:
+    """Unwind on SIGINT and SIGTERM (:func:`_signalled`) unless the signal is ignored; returns the handlers to
+    restore afterwards (Python's defaults in place of this module's own)."""
+    previous = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        previous[sig] = signal.getsignal(sig)
+        if previous[sig] is not signal.SIG_IGN:
+            signal.signal(sig, _signalled)
+    default = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+    return {sig: default[sig] if h in (_before_work, _signalled) else h for sig, h in previous.items()}
+
+
+def _adopt_orphans() -> None:
+    """Linux: become the subreaper of this launch's processes, so that a Ray process whose parent died (Ray cut
+    while it starts) is still this driver's descendant, and :func:`_stop_ray` ends it."""
+    with contextlib.suppress(Exception):
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)      # PR_SET_CHILD_SUBREAPER
 
 
 def _sweep_lock(args):
@@ -237,23 +280,54 @@ def _quiet_stderr():
 
 
 def _stop_ray() -> None:
-    """Shut down the Ray this process started or joined; then no process this driver started outlives it (Ray
-    leaves its agents behind when its GCS or raylet died)."""
-    ray = sys.modules.get("ray")
-    if ray is None or not ray.is_initialized():
-        return
+    """Shut down the Ray this process started (also one cut while it started); then no process of Ray's that this
+    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut)."""
     import psutil
 
-    from rovermarl.parallel.ray_backend import forget_pool
-    started = psutil.Process().children(recursive=True)
-    forget_pool()                                                    # its actors go with this Ray
-    with contextlib.suppress(Exception):                             # a dead GCS can make the shutdown fail
-        ray.shutdown()
-    _, alive = psutil.wait_procs(started, timeout=3)
-    for p in alive:
-        with contextlib.suppress(psutil.Error):
-            p.kill()
+    started = [p for p in psutil.Process().children(recursive=True) if _is_ray(p)]
+    ray = sys.modules.get("ray")
+    if ray is not None:
+        from rovermarl.parallel.ray_backend import forget_pool
+        forget_pool()                                                # its actors go with this Ray
+        with contextlib.suppress(Exception):                         # a dead GCS can make the shutdown fail
+            ray.shutdown()
+    for _ in range(3):                                               # and orphans re-parented to us meanwhile
+        started = [p for p in {*started, *psutil.Process().children(recursive=True)} if _is_ray(p)]
+        if not started:
+            return
+        _, alive = psutil.wait_procs(started, timeout=1)
+        for p in alive:
+            with contextlib.suppress(psutil.Error):
+                p.kill()
+        psutil.wait_procs(alive, timeout=2)
+
+
+def _is_ray(p) -> bool:
+    """A process of Ray's (GCS, raylet, agents, workers), not one that the user's code started."""
+    import psutil
+    try:
+        return p.is_running() and ("ray" in " ".join(p.cmdline()[:6]).lower() or p.name() in RAY_NAMES)
+    except psutil.Error:
+        return False
+
+
+RAY_NAMES = ("raylet", "gcs_server")
+
+
+def _cli() -> None:
+    """``main`` as a command. After a signal, the process ends without Python's finalizers: those of a Ray cut while
+    it started can abort the process (SIGABRT, SIGSEGV seen) after the launch's line was printed."""
+    try:
+        main()
+    except SystemExit as e:
+        if e.code not in (130, 143):
+            raise
+        import logging
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(e.code)
 
 
 if __name__ == "__main__":
-    main()
+    _cli()

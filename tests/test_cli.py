@@ -99,3 +99,13 @@ def test_more_workers_than_ray_cpus_completes_capped(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "parallel.workers=4 is more than the 2 CPUs of Ray: using 2 workers" in proc.stdout + proc.stderr
     assert sorted(json.loads((tmp_path / "summary.json").read_text())["final_score"]) == ["0", "1", "2", "3"]
+
+
+def test_too_many_ic_shards_are_refused_before_ray_starts():
+    import psutil
+    before = {p.pid for p in psutil.process_iter() if p.name() in ("raylet", "gcs_server")}
+    proc = run_cli("parallel.ic_shards=1000", "ray.num_cpus=2", "generations=10")
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "rovermarl.train: error: parallel.ic_shards=1000: must be at most the 2 CPUs of Ray"]
+    assert {p.pid for p in psutil.process_iter() if p.name() in ("raylet", "gcs_server")} <= before

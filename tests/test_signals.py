@@ -80,3 +80,51 @@ def test_an_interrupt_dropped_in_a_finalizer_is_delivered_again():
         signal.signal(signal.SIGINT, previous)
         sys.unraisablehook = hook
         train._SIGNALS.clear()
+
+
+def _marked(tag: str) -> list[int]:
+    """Live processes that inherited the environment marker ``SIGNAL_TEST=tag`` (the launch's and Ray's)."""
+    out = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            env = open(f"/proc/{pid}/environ", "rb").read().split(b"\0")
+            state = open(f"/proc/{pid}/stat").read().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            continue
+        if f"SIGNAL_TEST={tag}".encode() in env and state != "Z":
+            out.append(int(pid))
+    return out
+
+
+def _launch(tmp_path, tag: str) -> subprocess.Popen:
+    code = ("import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_DFL); "   # as a terminal's job has it
+            "os.execvp(sys.executable, [sys.executable, '-m', 'rovermarl.train', *sys.argv[1:]])")
+    return subprocess.Popen([sys.executable, "-c", code, "generations=2000", "seeds=2", "ray.num_cpus=2",
+                             f"hydra.run.dir={tmp_path / 'run'}"], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True, env={**os.environ, "SIGNAL_TEST": tag})
+
+
+@pytest.mark.parametrize("moment", ["imports", "raylet up"])
+@pytest.mark.parametrize("sig,code,what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_during_imports_or_ray_start_ends_in_one_line_and_leaves_no_process(tmp_path, sig, code, what,
+                                                                                      moment):
+    tag = f"{os.getpid()}-{time.monotonic_ns()}"
+    proc = _launch(tmp_path, tag)
+    if moment == "imports":
+        time.sleep(0.3)
+    else:                                                               # the raylet has just appeared
+        deadline = time.monotonic() + 120
+        while proc.poll() is None and time.monotonic() < deadline and not any(
+                "raylet" in p.name() for p in _descendants(proc.pid)):
+            time.sleep(0.02)
+    assert proc.poll() is None
+    proc.send_signal(sig)
+    t0 = time.monotonic()
+    _, err = proc.communicate(timeout=60)
+    answered = time.monotonic() - t0
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == code, err[-3000:]
+    assert "Traceback" not in err and 1 <= len(lines) <= 3 and lines[-1].startswith(f"rovermarl.train: {what}"), err
+    assert answered < 5
+    time.sleep(5)
+    assert not _marked(tag)                                             # no process of the launch, Ray's included

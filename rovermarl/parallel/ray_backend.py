@@ -108,14 +108,14 @@ def ensure_ray(ray_cfg) -> None:
 @contextlib.contextmanager
 def _held_stderr():
     """Hold what is written to file descriptor 2 (Ray's C++ core announces its log level there as it starts) and
-    show it only if the block fails."""
+    show it only if the block fails (not when a signal cut it: the launch then ends in one line)."""
     sys.stderr.flush()
     saved = os.dup(2)
     with tempfile.TemporaryFile() as held:
         os.dup2(held.fileno(), 2)
         try:
             yield
-        except BaseException:
+        except Exception:
             os.dup2(saved, 2)
             held.seek(0)
             sys.stderr.write(held.read().decode(errors="replace"))
