@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rovermarl.record.outputs import atomic_open
+from rovermarl.record.outputs import atomic_open, fault
 
 MAGIC = b"RMCKPT2"
 
@@ -91,6 +91,7 @@ class RunRecord:
         try:
             with atomic_open(new) as f:                                  # complete before touching the old ones
                 f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
+            fault(path)                                                  # the fault-injection suite's hook
             if path.exists():
                 os.replace(path, previous(path))
             os.replace(new, path)

@@ -19,11 +19,13 @@ Job dir layout::
 from __future__ import annotations
 
 import contextlib
+import errno
 import hashlib
 import json
 import logging
 import os
 import secrets
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +47,7 @@ def atomic_open(path: Path, mode: str = "wb"):
         with os.fdopen(fd, mode) as f:
             yield f
             f.flush()
+            fault(path)
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException as e:
@@ -53,6 +56,35 @@ def atomic_open(path: Path, mode: str = "wb"):
         if isinstance(e, OSError) and e.filename is None:             # a failed write: name the file it was for
             raise OSError(e.errno, e.strerror, str(path)) from None
         raise
+
+
+FAULT = "ROVERMARL_FAULT"       # the fault-injection suite's hook (tests/test_faults.py): "<file name>:<action>"
+
+
+def fault(path: Path) -> None:
+    """The fault-injection hook, at each write of a run: with ``ROVERMARL_FAULT=<file name>:<action>`` set, writing
+    that file (its temp copy is complete, not yet renamed) ends the process (``kill``: SIGKILL) or fails as the
+    disk would (``enospc``, ``eio``: OSError). Unset (always, outside the tests), it does nothing."""
+    spec = os.environ.get(FAULT)
+    if not spec:
+        return
+    name, _, action = spec.rpartition(":")
+    if name != Path(path).name:
+        return
+    if action == "kill":
+        os.kill(os.getpid(), signal.SIGKILL)
+    code = {"enospc": errno.ENOSPC, "eio": errno.EIO}[action]
+    raise OSError(code, os.strerror(code), str(path))
+
+
+def remove_temp_files(job_dir: Path) -> None:
+    """Remove the temp files that writers killed mid-write left in a job dir and its run dirs (the caller holds the
+    job dir's lock, so no live writer owns one)."""
+    job_dir = Path(job_dir)
+    for pattern in (".*.tmp", "runs/seed_*/.*.tmp", "runs/seed_*/.checkpoint.*.bin"):
+        for path in job_dir.glob(pattern):
+            with contextlib.suppress(FileNotFoundError):
+                path.unlink()
 
 
 def run_dir(job_dir: Path, seed: int) -> Path:
@@ -207,6 +239,8 @@ def close_launch(job_dir: Path, record: dict | None = None) -> None:
                         progress, type(e).__name__)
             progress.unlink(missing_ok=True)
             return
-    with open(job_dir / INVOCATIONS, "a") as f:
-        f.write(json.dumps(record) + "\n")
+    log_path = job_dir / INVOCATIONS
+    before = log_path.read_text() if log_path.is_file() else ""
+    with atomic_open(log_path, "w") as f:                              # rewritten whole: never a partial line
+        f.write(before + json.dumps(record) + "\n")
     progress.unlink(missing_ok=True)

@@ -26,6 +26,7 @@ from rovermarl.record.outputs import (
     launch_progress,
     load_score,
     outcome,
+    remove_temp_files,
     run_dir,
     save_run,
     summarize,
@@ -54,6 +55,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
 
 def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) -> dict:
     job, job_dir = to_plain(cfg), Path(job_dir)
+    remove_temp_files(job_dir)                                          # left by a launch that was killed
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
     per_generation = built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"])
