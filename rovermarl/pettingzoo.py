@@ -18,14 +18,18 @@ Reward               the team's, the same for every agent (SPEC section 1, ``env
 
 ``parallel_env(setup="duo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
 the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_rovers``, ``steps``, ...).
-``reset(seed=s)`` starts from ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is
-episode 0 of those initial conditions in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()``
-without a seed draws the next start from a stream of the last seed. Each step runs the world's own compiled stages
+``reset(seed=s)`` (``s`` an integer >= 0; anything else is refused with a ``ValueError``) starts from
+``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those initial conditions
+in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws the next start from
+a stream of the last seed. Each step runs the world's own compiled stages
 (:mod:`rovermarl.env.kernel.stages`, ``move`` then ``sense``), the rollout's dynamics, one implementation.
 
 ``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
 so far in the world's reading (the episode's return after the last step, bit-identical to ``World.returns``), and
-``step``. ``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib.
+``step``. ``step`` refuses, before it changes anything, an actions dict that names an unknown agent or holds an
+action that is not 2 finite real numbers (``nan``, ``inf``, complex values, another shape), with a ``ValueError``
+naming the agent; the AEC form (:func:`env`) refuses the action at that agent's own step.
+``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib.
 
 >>> from rovermarl.pettingzoo import parallel_env
 >>> e = parallel_env("duo")
@@ -36,12 +40,16 @@ so far in the world's reading (the episode's return after the last step, bit-ide
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from numbers import Integral
+
 import numpy as np
 
 try:
     from gymnasium import spaces
     from pettingzoo import ParallelEnv
-    from pettingzoo.utils.conversions import parallel_to_aec
+    from pettingzoo.utils.conversions import parallel_to_aec_wrapper
+    from pettingzoo.utils.wrappers import OrderEnforcingWrapper
 except ModuleNotFoundError as e:                       # an optional extra: say how to get it
     raise ModuleNotFoundError(f"rovermarl.pettingzoo needs {e.name}: pip install 'rovermarl[pettingzoo]'",
                               name=e.name) from None
@@ -49,6 +57,7 @@ except ModuleNotFoundError as e:                       # an optional extra: say 
 from rovermarl.env import World, kernel, make_world
 
 ACTION_LOW, ACTION_HIGH = -1.0, 1.0
+ACTION_RULE = f"an action is 2 finite real numbers (speed, turn), clipped to [{ACTION_LOW:g}, {ACTION_HIGH:g}]"
 
 
 def parallel_env(setup: str = "duo", render_mode: str | None = None, **overrides) -> RoverParallelEnv:
@@ -57,8 +66,20 @@ def parallel_env(setup: str = "duo", render_mode: str | None = None, **overrides
 
 
 def env(setup: str = "duo", render_mode: str | None = None, **overrides):
-    """The AEC environment: :func:`parallel_env` through PettingZoo's ``parallel_to_aec``."""
-    return parallel_to_aec(parallel_env(setup, render_mode=render_mode, **overrides))
+    """The AEC environment: :func:`parallel_env` through PettingZoo's ``parallel_to_aec`` (its wrapper, and the
+    order-enforcing one), refusing a bad action at the agent's own step."""
+    return OrderEnforcingWrapper(_RoverAEC(parallel_env(setup, render_mode=render_mode, **overrides)))
+
+
+class _RoverAEC(parallel_to_aec_wrapper):
+    """PettingZoo's ``parallel_to_aec_wrapper`` that checks each live agent's action when it is given, before the
+    wrapper stores it (else a bad action would surface only at the last agent's step, the turn state moved on)."""
+
+    def step(self, action):
+        agent = self.agent_selection
+        if not (self.terminations[agent] or self.truncations[agent]):
+            self.env.check_action(agent, action)
+        super().step(action)
 
 
 class RoverParallelEnv(ParallelEnv):
@@ -96,8 +117,9 @@ class RoverParallelEnv(ParallelEnv):
     # ---- episode ---------------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode: from ``World.initial_conditions(seed=seed, n=1)``, or the next start of the stream of
-        the last seed. Returns observations and infos per agent."""
+        the last seed. Returns observations and infos per agent. ``seed``: None or an integer >= 0."""
         if seed is not None:
+            seed = _seed(seed)
             xy, heading = self.world.initial_conditions(seed=seed, n=1)
             self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
         else:
@@ -115,17 +137,22 @@ class RoverParallelEnv(ParallelEnv):
 
     def step(self, actions: dict):
         """Move every rover by its action ``(a0, a1)`` (a missing agent's is (0, 0): straight on at half speed in
-        the ``affine`` reading); returns observations, rewards, terminations, truncations and infos."""
+        the ``affine`` reading); returns observations, rewards, terminations, truncations and infos. An unknown agent
+        or an action that is not 2 finite real numbers is refused (``ValueError`` naming the agent) before any state
+        changes."""
         if not self.agents:
             raise RuntimeError("the episode is over: call reset()")
         w = self.world
+        if not isinstance(actions, Mapping):
+            raise ValueError(f"actions must be a dict of agent -> action, got {type(actions).__name__}")
+        for key in actions:
+            if key not in self.possible_agents:
+                raise ValueError(f"actions[{key!r}]: no such agent; the agents are {self._agent_names()}")
         f = self._f
         a = np.zeros((1, w.n_rovers, 2), f)
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
-                a[0, i] = np.clip(np.asarray(actions[agent], dtype=f).reshape(2), ACTION_LOW, ACTION_HIGH)
-        if not np.isfinite(a).all():
-            raise ValueError("actions must be finite numbers")
+                a[0, i] = self.check_action(agent, actions[agent])
         kernel.move(self.xy, self.heading, a, f(w.v_max), f(w.w_max), kernel.SPEEDS.index(w.speed))
         self.t += 1
         self.path[self.t] = self.xy[0]
@@ -138,6 +165,32 @@ class RoverParallelEnv(ParallelEnv):
         if done:
             self.agents = []
         return out
+
+    def check_action(self, agent: str, action) -> np.ndarray:
+        """``action`` of ``agent`` as a (2,) array in ``env.dtype``, clipped to the action box; ``ValueError`` naming
+        the agent, what is wrong and what is allowed when it is not 2 finite real numbers."""
+        def refuse(problem: str):
+            return ValueError(f"actions[{agent!r}] {problem}: {ACTION_RULE}")
+
+        if action is None:
+            raise refuse("is None")
+        try:
+            x = np.asarray(action)
+        except (TypeError, ValueError):                 # e.g. a ragged list
+            raise refuse(f"is not an array of numbers ({_show(action)})") from None
+        if x.dtype.kind == "c":
+            raise refuse(f"is complex ({_show(x)})")
+        if x.dtype.kind not in "iuf":                   # bool, str, object, ...
+            raise refuse(f"is not real numbers (dtype {x.dtype}: {_show(x)})")
+        if x.shape != (2,):
+            raise refuse(f"has shape {x.shape}, not (2,)")
+        if not np.isfinite(x).all():
+            raise refuse(f"is not finite ({_show(x)})")
+        return np.clip(x.astype(np.float64), ACTION_LOW, ACTION_HIGH).astype(self._f)
+
+    def _agent_names(self) -> str:
+        agents = self.possible_agents
+        return ", ".join(agents) if len(agents) <= 4 else f"{agents[0]} ... {agents[-1]}"
 
     def _running_return(self) -> float:
         """The team's return so far in the world's reading (after the last step: the episode's return)."""
@@ -181,6 +234,23 @@ class RoverParallelEnv(ParallelEnv):
 
     def close(self):
         pass
+
+
+def _seed(seed) -> int:
+    """A reset seed: an integer >= 0 (a Python or NumPy integer; not a bool), else a one-line ``ValueError``."""
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (Integral, np.integer)) or seed < 0:
+        raise ValueError(f"seed={_show(seed)}: must be None or an integer >= 0")
+    return int(seed)
+
+
+def _show(value, width: int = 60) -> str:
+    """``value`` on one short line, for an error message."""
+    if isinstance(value, np.ndarray):
+        text = np.array2string(value, separator=", ", threshold=8, max_line_width=10**6)
+    else:
+        text = repr(value)
+    text = " ".join(text.split())
+    return text if len(text) <= width else text[:width - 3] + "..."
 
 
 def genome_policy(world: World, genomes: np.ndarray):

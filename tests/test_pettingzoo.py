@@ -79,6 +79,87 @@ def test_infos_and_actions():
         e.step({"rover_0": [np.nan, 0.0]})
 
 
+RULE = "an action is 2 finite real numbers (speed, turn), clipped to [-1, 1]"
+
+
+@pytest.mark.parametrize("action,problem", [
+    ([np.inf, 0.0], "is not finite ([inf, 0.])"),
+    (np.array([0.5, -np.inf], np.float32), "is not finite ([ 0.5, -inf])"),
+    ([np.nan, 0.0], "is not finite ([nan, 0.])"),
+    ([1 + 2j, 0.0], "is complex ([1.+2.j, 0.+0.j])"),
+    (np.array([0.5, 0.0], np.complex128), "is complex"),
+    ([1.0, 0.0, 0.0], "has shape (3,), not (2,)"),
+    ([[1.0, 0.0]], "has shape (1, 2), not (2,)"),
+    (0.5, "has shape (), not (2,)"),
+    ([[1.0], [0.0, 1.0]], "is not an array of numbers"),
+    (["a", "b"], "is not real numbers (dtype <U1"),
+    (None, "is None"),
+])
+@pytest.mark.parametrize("agent", ["rover_0", "rover_3"])
+def test_a_bad_action_is_refused_naming_the_agent_before_anything_changes(action, problem, agent):
+    e = parallel_env("duo")
+    e.reset(seed=2)
+    before = (e.xy.copy(), e.heading.copy(), e.path.copy(), e.t, e.value, list(e.agents))
+    actions = {a: np.zeros(2) for a in e.agents} | {agent: action}
+    with pytest.raises(ValueError) as err:
+        e.step(actions)
+    message = str(err.value)
+    assert message.startswith(f"actions[{agent!r}] {problem}") and message.endswith(f": {RULE}")
+    assert "\n" not in message
+    xy, heading, path, t, value, agents = before
+    assert np.array_equal(e.xy, xy) and np.array_equal(e.heading, heading) and np.array_equal(e.path, path)
+    assert (e.t, e.value, e.agents) == (t, value, agents)
+    e.step({a: np.zeros(2) for a in e.agents})                   # the episode goes on from where it was
+    assert e.t == 1
+
+
+@pytest.mark.parametrize("key", ["rover_4", "rover", 0])
+def test_an_unknown_agent_in_the_actions_is_refused_before_anything_changes(key):
+    e = parallel_env("duo")
+    e.reset(seed=2)
+    xy = e.xy.copy()
+    with pytest.raises(ValueError) as err:
+        e.step({"rover_0": [1.0, 0.0], key: [1.0, 0.0]})
+    assert str(err.value) == f"actions[{key!r}]: no such agent; the agents are rover_0, rover_1, rover_2, rover_3"
+    assert np.array_equal(e.xy, xy) and e.t == 0
+    with pytest.raises(ValueError, match="^actions must be a dict of agent -> action, got list$"):
+        e.step([[1.0, 0.0]] * 4)
+
+
+def test_the_aec_env_refuses_a_bad_action_at_that_agents_step():
+    e = env("duo")
+    e.reset(seed=2)
+    e.step(np.array([1.0, 0.0]))                                 # rover_0
+    assert e.agent_selection == "rover_1"
+    for bad, problem in (([np.inf, 0.0], "is not finite"), ([1j, 0.0], "is complex"), ([1.0], "has shape (1,)")):
+        with pytest.raises(ValueError) as err:
+            e.step(bad)
+        assert str(err.value).startswith(f"actions['rover_1'] {problem}") and str(err.value).endswith(RULE)
+        assert e.agent_selection == "rover_1"                    # the turn did not move on
+    for _ in range(3):
+        e.step(np.array([0.0, 0.0]))                             # rover_1 .. rover_3: the world steps
+    assert e.unwrapped.t == 1 and e.agent_selection == "rover_0"
+
+
+@pytest.mark.parametrize("seed", [-1, 1.5, 2.0, "a", "3", True, False, np.int64(-1), [1, 2]])
+def test_reset_refuses_a_bad_seed_in_one_line(seed):
+    e = parallel_env("duo")
+    with pytest.raises(ValueError) as err:
+        e.reset(seed=seed)
+    message = str(err.value)
+    assert message.startswith("seed=") and message.endswith(": must be None or an integer >= 0")
+    assert "\n" not in message and not e.agents
+
+
+def test_reset_takes_python_and_numpy_integer_seeds():
+    a, b = parallel_env("duo"), parallel_env("duo")
+    obs_a, _ = a.reset(seed=7)
+    obs_b, _ = b.reset(seed=np.int64(7))
+    assert all(np.array_equal(obs_a[k], obs_b[k]) for k in obs_a)
+    a.reset(seed=0)
+    a.reset(seed=2**70)
+
+
 def test_occupancy_counts_rovers_at_pois():
     e = parallel_env("duo")
     e.reset(seed=0)
