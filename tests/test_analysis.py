@@ -196,6 +196,24 @@ def test_reproduction_report_quotes_the_committed_results(tmp_path):
     assert text in (ROOT / "docs" / "REPRODUCTION.md").read_text()
 
 
+@pytest.mark.parametrize("keep,missing", [
+    ("setup=duo", "every solo job (k=1, k=2, k=4, homogeneous, adaptive)"),
+    ("setup=solo", "every duo job (k=1, k=2, k=4, homogeneous, adaptive, k=1 strict, k=2 strict, k=4 strict)"),
+    ("k=", "solo homogeneous; duo homogeneous"),                           # a method missing in both setups
+])
+def test_claims_on_a_partial_results_dir_names_what_is_missing_in_one_line(tmp_path, keep, missing):
+    partial = tmp_path / "partial"
+    for job in sorted(RESULTS.glob("*/curves.npz")):
+        if keep in job.parent.name:
+            shutil.copytree(job.parent, partial / job.parent.name)
+    proc = run_cli("claims", str(partial), module="rovermarl.analysis", timeout=300)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.endswith("\n") and len(proc.stderr.splitlines()) == 1, proc.stderr
+    assert proc.stderr == (f"rovermarl.analysis: error: {partial}: the claims report needs the 13 jobs of the paper "
+                           f"study (launchers/paper.sh); missing: {missing}\n")
+    assert proc.stdout == "" and not (partial / "claims.md").exists() and not (partial / "claims.json").exists()
+
+
 # ---- the k-selector benchmark ----------------------------------------------------------------------------------
 def test_selectors_launcher_runs_every_selector_and_writes_the_table(tmp_path):
     env = {**os.environ, "GENERATIONS": "40", "SEEDS": "2", "OUT": str(tmp_path / "sweep"),

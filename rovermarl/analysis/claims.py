@@ -7,6 +7,10 @@ Every statistic is over the 16 runs (seeds) of a job: medians of the score at fi
 bootstrap 95% CIs; the runs reaching a level as a count with a Wilson 95% CI; the median time (generations) to
 a level, censored at the budget (a run that never gets there counts as ``never``); two-sided Mann-Whitney U
 between methods.
+
+The report needs every job of the paper study (:data:`REQUIRED`, what ``launchers/paper.sh`` runs); a results dir
+missing any of them is refused in one line naming the missing setups and jobs (:class:`ResultsError`; the
+``selectors`` report takes any subset).
 """
 
 from __future__ import annotations
@@ -19,12 +23,15 @@ import numpy as np
 
 from rovermarl.analysis import stats
 from rovermarl.analysis.levels import THRESHOLDS, optimum, quartile_times, setup_rank
-from rovermarl.analysis.results import COUPLING_KINDS, Result, load
+from rovermarl.analysis.results import COUPLING_KINDS, Result, ResultsError, load
 from rovermarl.record.outputs import atomic_open, write_json
 
 FIXED = ("k=1", "k=2", "k=4", "homogeneous")
 ORDER = ("k=1", "k=2", "k=3", "k=4", "homogeneous", "adaptive", "ucb1", "thompson", "egreedy", "exp3s", "schedule",
          "k=1 strict", "k=2 strict", "k=4 strict")
+# the jobs (setup: labels) the claims C1-C8 read: the paper study's, Figs. 4, 5, 7 and 8
+REQUIRED = {"solo": ("k=1", "k=2", "k=4", "homogeneous", "adaptive"),
+            "duo": ("k=1", "k=2", "k=4", "homogeneous", "adaptive", "k=1 strict", "k=2 strict", "k=4 strict")}
 
 
 class Claims:
@@ -253,7 +260,27 @@ class Claims:
         self.data["compute"] = totals
         self.lines.append("")
 
+    def missing(self) -> list[str]:
+        """The jobs of :data:`REQUIRED` not in the results: ``duo k=2 strict``, or for a setup without any job
+        ``every solo job (k=1, ...)``."""
+        out = []
+        for setup, labels in REQUIRED.items():
+            gone = [label for label in labels if self.get(setup, label) is None]
+            if len(gone) == len(labels) and not self.methods(setup):
+                out.append(f"every {setup} job ({', '.join(labels)})")
+            else:
+                out += [f"{setup} {label}" for label in gone]
+        return out
+
     def run(self) -> tuple[str, dict]:
+        """The claims report (markdown) and its numbers; :class:`ResultsError` if a job of :data:`REQUIRED` is
+        missing."""
+        missing = self.missing()
+        if missing:
+            where = next(iter(self.jobs.values())).path.parent
+            n = sum(map(len, REQUIRED.values()))
+            raise ResultsError(f"{where}: the claims report needs the {n} jobs of the paper study "
+                               f"(launchers/paper.sh); missing: {'; '.join(missing)}")
         self.lines += [f"Budget: {self.budget:,} generations (team evaluations) per run; scores at "
                        + ", ".join(f"{b:,}" for b in self.budgets) + " generations. 95% CIs in brackets.", ""]
         self.c1_c3()
