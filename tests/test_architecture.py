@@ -41,3 +41,26 @@ def test_the_architecture_map_names_every_module_and_only_those():
 def test_the_package_writes_no_benchmark_log():
     offenders = [m for m in MODULES if "ROVERMARL_WORK_LOG" in (ROOT / m).read_text()]
     assert not offenders
+
+
+def test_no_import_cycle_between_any_two_modules_packages_included():
+    # a package's __init__ is a module too: rovermarl.parallel -> ray_backend -> rovermarl.parallel was a cycle
+    import grimp
+
+    graph = grimp.build_graph("rovermarl")
+    modules = sorted(graph.modules)
+    state, cycles = dict.fromkeys(modules, 0), []
+
+    def visit(m, path):
+        state[m] = 1
+        for n in sorted(graph.find_modules_directly_imported_by(m)):
+            if state.get(n) == 1:
+                cycles.append(path[path.index(n):] + [n])
+            elif state.get(n) == 0:
+                visit(n, path + [n])
+        state[m] = 2
+
+    for m in modules:
+        if state[m] == 0:
+            visit(m, [m])
+    assert not cycles, cycles[:5]

@@ -29,6 +29,10 @@ class RandomSearch(Algorithm):
         self.low, self.high = errors.number("init_low", init_low), errors.number("init_high", init_high)
         self.series = (Series("best_child", "float64", fill=np.nan, doc="score of the best of the lam children"),)
 
+    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
+        """``lam`` children per generation (and one re-evaluation when an accepted child was not the last)."""
+        return float(self.lam)
+
     def _init(self, seeds, evaluate):
         s_init, s_mut = seeds.spawn(2)
         shape = (self.world.n_rovers, self.world.n_params)

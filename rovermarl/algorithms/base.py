@@ -98,6 +98,11 @@ class NullObserver:
         pass
 
 
+# Names a run's arrays already use (curve.npz, the runner's record, the observer's files): no series may take them.
+RESERVED = frozenset({"score", "seed", "genomes", "ic_xy", "ic_heading", "heldout_score", "initial_score"})
+RESERVED_PREFIXES = ("behaviour_", "occupancy_")
+
+
 class AlgorithmError(Exception):
     """A run cannot continue because of a plug-in's behaviour; the message is one line naming the plug-in."""
 
@@ -144,6 +149,16 @@ class Algorithm:
     def score(self, state: dict) -> float:
         """The score of :meth:`team`."""
         return float(state["score"])
+
+    def check_series(self) -> None:
+        """Raise :class:`~rovermarl.errors.ConfigError` (one line) if a declared series takes a name the run's files
+        already use (:data:`RESERVED`), or two series share a name."""
+        names = [s.name for s in self.series]
+        for name in names:
+            if name in RESERVED or name.startswith(RESERVED_PREFIXES) or names.count(name) > 1:
+                raise errors.ConfigError("algorithm.series", name, f"{type(self).__name__} declares a series "
+                                         "under a name that is taken (" + ", ".join(sorted(RESERVED)) +
+                                         ", behaviour_*, occupancy_*, or another series)")
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         """Team evaluations one generation costs (``fresh_ic``: under ``evaluation.fresh_ic``): what the runner's

@@ -13,12 +13,10 @@ from collections.abc import Callable
 
 from omegaconf import DictConfig
 
+from rovermarl.parallel.errors import BackendError
+
+__all__ = ["BackendError", "run_records", "run_serial"]
 OnChunk = Callable[[object, int], None]
-
-
-class BackendError(Exception):
-    """Ray failed under a job (a dead GCS, raylet or actor past its retries, or no chunk finished within
-    ``parallel.stall_timeout``); ``str(err)`` is one line naming the cause."""
 
 
 def run_records(cfg: DictConfig, job: dict, records: list, on_chunk: OnChunk, advance: Callable) -> None:

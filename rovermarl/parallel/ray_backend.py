@@ -14,7 +14,7 @@ import time
 
 import ray
 
-from rovermarl.parallel import BackendError
+from rovermarl.parallel.errors import BackendError
 
 log = logging.getLogger("rovermarl")
 

@@ -76,6 +76,7 @@ def validate(cfg: DictConfig) -> None:
                 else "missing; the config refers to it")
         raise errors.ConfigError(key, None, what) from None
     built = parts(plain)                               # builds world and algorithm once; the job reuses them
+    built.algorithm.check_series()
     budget.check(plain, series_bytes(built.algorithm.series),
                  built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
 

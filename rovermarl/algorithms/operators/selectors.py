@@ -7,6 +7,7 @@ A selector subclasses :class:`KSelector`: it sets ``arms`` (the k values it may 
 
 from __future__ import annotations
 
+import copy
 import math
 
 import numpy as np
@@ -39,10 +40,20 @@ class KSelector:
         """Feedback after the generation that used ``k``."""
 
     def state_dict(self) -> dict:
-        return {}
+        """What the selector has learned, checkpointed with the run. By default every attribute (a copy), so a
+        selector that learns in plain attributes resumes bit-identically without writing this; override both
+        methods to store less."""
+        return {name: copy.deepcopy(value) for name, value in vars(self).items()}
 
     def load_state_dict(self, state: dict) -> None:
-        pass
+        """Restore :meth:`state_dict` (after a checkpoint's JSON round trip: lists back to the type they had)."""
+        for name, value in state.items():
+            now = getattr(self, name, None)
+            if isinstance(now, np.ndarray):
+                value = np.array(value, dtype=now.dtype)
+            elif isinstance(now, tuple):
+                value = tuple(value)
+            setattr(self, name, copy.deepcopy(value))
 
     def _reward_rule(self, reward: str) -> str:
         return errors.choice("reward", reward, ("improved", "gain"))

@@ -1,0 +1,78 @@
+"""Plug-in contracts fail loudly or hold by themselves: a selector's learned state is checkpointed without its
+author writing state_dict; a series may not take a name a run's files use; an example's cost is declared."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from rovermarl.algorithms.base import Algorithm, Series
+from rovermarl.algorithms.operators.selectors import KSelector
+from rovermarl.env import make_world
+from rovermarl.errors import ConfigError
+from rovermarl.record.checkpoint import _decode, _encode
+from tests.conftest import ROOT
+
+
+class RoundRobin(KSelector):
+    """k = 1, 2, ..., N, 1, 2, ...: it learns (a counter) and writes no state_dict."""
+
+    def __init__(self, n_agents, f_max=1.0):
+        super().__init__(n_agents, f_max)
+        self.arms = tuple(range(1, n_agents + 1))
+        self.i = 0
+        self.seen = np.zeros(n_agents)
+
+    def choose(self, rng):
+        return self.arms[self.i % len(self.arms)]
+
+    def update(self, k, f_child, f_parent):
+        self.i += 1
+        self.seen[k - 1] += f_child
+
+
+def _checkpointed(state: dict) -> dict:
+    """A state through a checkpoint's encoding and JSON, as a resumed run gets it."""
+    arrays = {}
+    meta = json.loads(json.dumps(_encode(state, arrays)))
+    return _decode(meta, arrays)
+
+
+def test_a_selector_without_state_dict_resumes_where_it_was():
+    rng, whole = np.random.default_rng(0), RoundRobin(4)
+    want = []
+    for t in range(11):
+        want.append(whole.choose(rng))
+        whole.update(want[-1], float(t), 0.0)
+    first, got = RoundRobin(4), []
+    for t in range(6):                                                  # a chunk of 6 generations
+        got.append(first.choose(rng))
+        first.update(got[-1], float(t), 0.0)
+    resumed = RoundRobin(4)
+    resumed.load_state_dict(_checkpointed(first.state_dict()))
+    for t in range(6, 11):
+        got.append(resumed.choose(rng))
+        resumed.update(got[-1], float(t), 0.0)
+    assert got == want == [1, 2, 3, 4, 1, 2, 3, 4, 1, 2, 3]            # not 1, 2, 3, 4, 1, 2, 1, 2, ...
+    np.testing.assert_array_equal(resumed.seen, whole.seen)
+    assert resumed.seen.dtype == np.float64 and isinstance(resumed.arms, tuple)
+
+
+@pytest.mark.parametrize("name", ["score", "genomes", "seed", "heldout_score", "behaviour_xy"])
+def test_a_series_under_a_reserved_name_is_refused_in_one_line(name):
+    class Clash(Algorithm):
+        series = (Series(name, "float64"),)
+
+    with pytest.raises(ConfigError) as e:
+        Clash(make_world("solo")).check_series()
+    assert "\n" not in str(e.value) and name in str(e.value) and "Clash" in str(e.value)
+
+
+def test_random_search_declares_lam_evaluations_per_generation():
+    sys.path.insert(0, str(ROOT / "examples" / "random_search"))
+    try:
+        from random_search import RandomSearch
+    finally:
+        sys.path.pop(0)
+    assert RandomSearch(make_world("solo"), lam=4).evaluations_per_generation() == 4.0
