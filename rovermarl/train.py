@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.unraisablehook = hook
         if ours:
             with _quiet_stderr() if stop or _SIGNALS else contextlib.nullcontext():   # Ray's shutdown after a
-                _stop_ray()                                                          # fault is noise
+                _stop_ray(bool(_SIGNALS))                                            # fault is noise
     if _SIGNALS:                  # also when the interrupt was swallowed (raised in a finalizer) and the work went on
         term = signal.SIGTERM in _SIGNALS
         stop = Stop(f"{PROG}: {'terminated' if term else 'interrupted'}; relaunch the same command to resume",
@@ -279,9 +279,11 @@ def _quiet_stderr():
         os.close(saved)
 
 
-def _stop_ray() -> None:
+def _stop_ray(signalled: bool = False) -> None:
     """Shut down the Ray this process started (also one cut while it started); then no process of Ray's that this
-    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut)."""
+    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut).
+    After a signal the launch must end within seconds, also on a loaded machine: Ray's processes are then ended
+    directly (SIGTERM, SIGKILL 1 s later) instead of by Ray's own shutdown (several seconds under load)."""
     import psutil
 
     started = [p for p in psutil.Process().children(recursive=True) if _is_ray(p)]
@@ -289,17 +291,21 @@ def _stop_ray() -> None:
     if ray is not None:
         from rovermarl.parallel.ray_backend import forget_pool
         forget_pool()                                                # its actors go with this Ray
-        with contextlib.suppress(Exception):                         # a dead GCS can make the shutdown fail
-            ray.shutdown()
+        if not signalled:
+            with contextlib.suppress(Exception):                     # a dead GCS can make the shutdown fail
+                ray.shutdown()
     for _ in range(3):                                               # and orphans re-parented to us meanwhile
         started = [p for p in {*started, *psutil.Process().children(recursive=True)} if _is_ray(p)]
         if not started:
             return
+        for p in started if signalled else ():
+            with contextlib.suppress(psutil.Error):
+                p.terminate()
         _, alive = psutil.wait_procs(started, timeout=1)
         for p in alive:
             with contextlib.suppress(psutil.Error):
                 p.kill()
-        psutil.wait_procs(alive, timeout=2)
+        psutil.wait_procs(alive, timeout=1)
 
 
 def _is_ray(p) -> bool:
