@@ -21,10 +21,9 @@ def _before_work(signum, frame):
     os._exit(143 if term else 130)
 
 
-if __name__ == "__main__":
+if __name__ == "__main__":               # also where the shell started it with SIGINT ignored (a background job)
     for _sig in (signal.SIGINT, signal.SIGTERM):
-        if signal.getsignal(_sig) is not signal.SIG_IGN:              # an ignored signal (nohup) stays ignored
-            signal.signal(_sig, _before_work)
+        signal.signal(_sig, _before_work)
 
 import argparse  # noqa: E402 - after the handlers above
 import contextlib  # noqa: E402
@@ -204,13 +203,12 @@ def main(argv: list[str] | None = None) -> None:
 
 
 def _handle_signals() -> dict:
-    """Unwind on SIGINT and SIGTERM (:func:`_signalled`) unless the signal is ignored; returns the handlers to
-    restore afterwards (Python's defaults in place of this module's own)."""
+    """Unwind on SIGINT and SIGTERM (:func:`_signalled`); returns the handlers to restore afterwards (Python's
+    defaults in place of this module's own)."""
     previous = {}
     for sig in (signal.SIGINT, signal.SIGTERM):
         previous[sig] = signal.getsignal(sig)
-        if previous[sig] is not signal.SIG_IGN:
-            signal.signal(sig, _signalled)
+        signal.signal(sig, _signalled)
     default = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
     return {sig: default[sig] if h in (_before_work, _signalled) else h for sig, h in previous.items()}
 
