@@ -16,13 +16,13 @@ the compiled call stops after each one and Python tells the observer (trajectori
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
 from rovermarl.algorithms.operators.selection import Selection, keeps
 from rovermarl.algorithms.operators.selectors import EXP3, FixedK, bandit_reward, draw_arm, exp3_update
 from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam, pick_distinct
 from rovermarl.env.kernel import rollout, score, switched
+from rovermarl.jit import njit
 
 _NO_FINAL = np.empty((0, 1, 2))
 _NO_POI, _NO_PROBS = np.empty((0, 1), dtype=np.int16), np.empty((0, 1))

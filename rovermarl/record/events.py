@@ -16,9 +16,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl.env.kernel import observers, poi_of, switched
+from rovermarl.jit import njit
 
 FILES = ("behaviour", "occupancy")   # the result files of :meth:`BehaviourObserver.drain`
 

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl import errors
+from rovermarl.jit import njit
 
 
 class MixedMutation:

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from numba import njit
-
 from rovermarl.errors import ConfigError
+from rovermarl.jit import njit
 
 
 class Selection:

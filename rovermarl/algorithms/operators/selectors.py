@@ -11,10 +11,10 @@ import copy
 import math
 
 import numpy as np
-from numba import njit
 
 from rovermarl import errors
 from rovermarl.env.kernel import pairwise_sum
+from rovermarl.jit import njit
 
 
 class KSelector:

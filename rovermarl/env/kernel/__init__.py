@@ -14,11 +14,8 @@
   and the phenotypic coupling measure :func:`switched`;
 - :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
 
-numba's cache (``cache=True``) checks only the file of the function it compiled, not the files of its callees: after
-editing ``math.py``, ``rules.py``, ``simd.py``, ``checks.py``, ``stages.py`` or ``reward.py``, delete
-``rovermarl/env/kernel/__pycache__`` (and ``rovermarl/record/__pycache__``, whose event functions call
-:func:`poi_of`, and ``rovermarl/algorithms/__pycache__``, whose compiled generation loop and operators embed the
-kernel and :func:`pairwise_sum`) so that their callers recompile.
+numba's cache follows every source a compiled function may reach (:mod:`rovermarl.jit`): an edit of any kernel file
+recompiles its callers on the next run; no ``__pycache__`` needs deleting.
 """
 
 from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)

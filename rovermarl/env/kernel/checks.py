@@ -13,9 +13,9 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl.env.kernel.math import FAST, like, pick
+from rovermarl.jit import njit
 
 
 @njit(inline="always", **FAST)

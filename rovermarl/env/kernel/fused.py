@@ -4,13 +4,13 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl.env.kernel.checks import input_rows, mlp_finite
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.reward import fold, reward, settle
 from rovermarl.env.kernel.rules import BEST_STEP, FINAL
 from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
+from rovermarl.jit import njit
 
 
 @njit(**FAST)

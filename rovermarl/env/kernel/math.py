@@ -19,8 +19,10 @@ import math
 
 import numpy as np
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.extending import intrinsic, overload
+
+from rovermarl.jit import njit
 
 TWO_PI = 2.0 * math.pi
 FAST = {"cache": True, "fastmath": {"contract"}, "error_model": "numpy"}

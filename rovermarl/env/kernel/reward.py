@@ -10,10 +10,10 @@ Shapes: E episodes, N rovers, P POIs.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from rovermarl.env.kernel.math import U
 from rovermarl.env.kernel.rules import ANY_STEP, BEST_STEP, poi_of, within
+from rovermarl.jit import njit
 
 
 @njit(inline="always", cache=True)

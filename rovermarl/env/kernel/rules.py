@@ -22,9 +22,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from rovermarl.env.kernel.math import FAST, atan2, like
+from rovermarl.jit import njit
 
 REWARDS = ("final", "any_step", "best_step", "mean_step")   # env.reward; the kernel's code is the index
 FINAL, ANY_STEP, BEST_STEP, MEAN_STEP = range(4)

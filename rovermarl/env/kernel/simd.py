@@ -16,9 +16,11 @@ plain loops (``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of e
 from __future__ import annotations
 
 from llvmlite import ir
-from numba import njit, types
+from numba import types
 from numba.core import cgutils
 from numba.extending import intrinsic, overload
+
+from rovermarl.jit import njit
 
 UNITS = 8          # hidden units per tile (the output layer's tiles have its 2 units)
 EPISODES = 8       # float64 episodes per tile: one 64-byte vector per unit (16 for float32)

@@ -19,12 +19,12 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from rovermarl.env.kernel.checks import in_range
 from rovermarl.env.kernel.math import FAST, U, like, sincos_all, tanh, wrap
 from rovermarl.env.kernel.rules import bearing, reading, speed, turn
 from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile, output_tile2
+from rovermarl.jit import njit
 
 # ---- batch-first stages ------------------------------------------------------------------------------------------
 

@@ -63,15 +63,14 @@ def configure() -> str | None:
 def debug_build_warning() -> str | None:
     """The warning given at import when numba builds with debug info (``NUMBA_DEBUGINFO=1``, or
     ``NUMBA_ENABLE_PROFILING=1`` without ``NUMBA_DEBUGINFO=0``), else None. Such a build does not inline the kernel's
-    ``tanh`` and ``atan2`` nor vectorise its loops (the float64 kernel measured about 5x slower here), and numba
-    caches it under the same key as the fast one, so later runs load it until the ``__pycache__`` dirs go."""
+    ``tanh`` and ``atan2`` nor vectorise its loops (the float64 kernel measured about 5x slower here); it is cached
+    apart from the plain build (:mod:`rovermarl.jit`), so later plain runs do not load it."""
     from numba.core import config
 
     if not config.DEBUGINFO_DEFAULT:
         return None
     message = ("numba builds with debug info (NUMBA_DEBUGINFO / NUMBA_ENABLE_PROFILING): the kernel is not vectorised "
-               "(about 5x slower) and numba caches that build for later runs too; afterwards delete the __pycache__ "
-               "dirs under rovermarl/ (to profile, set NUMBA_DEBUGINFO=0 and a scratch NUMBA_CACHE_DIR)")
+               "(about 5x slower; cached apart from the plain build); to profile it, set NUMBA_DEBUGINFO=0")
     warnings.warn(message, stacklevel=3)
     return message
 

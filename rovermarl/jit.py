@@ -1,0 +1,89 @@
+"""numba's ``njit``, with a compile cache that cannot go stale.
+
+numba's own cache (``cache=True``) stamps a compiled function with its own file only: after an edit of a callee in
+another file (``math.py``'s ``tanh`` under ``stages.py``'s ``sense``, say) it loads the old machine code. Every module
+of rovermarl that compiles imports ``njit`` from here instead; this module first puts :class:`SourcesLocator` in front
+of numba's cache locators, so that a cached function's stamp is a hash of every numba-using source it may reach:
+all of rovermarl's, and for a plug-in outside the package (a world, an operator) also those of its own directory.
+Editing any of them recompiles what depends on it, in the package or in a plug-in. A build with debug info
+(``NUMBA_DEBUGINFO``, ``NUMBA_ENABLE_PROFILING``: not vectorised) is stamped apart, so later plain runs never load it.
+The cache stays where numba puts it (the package's ``__pycache__`` dirs, or ``NUMBA_CACHE_DIR``).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+from pathlib import Path
+
+from numba import njit
+from numba.core import caching, config
+
+__all__ = ["njit", "sources_stamp"]
+PACKAGE = Path(__file__).resolve().parent
+
+
+@functools.cache
+def _file_hash(path: str, mtime_ns: int, size: int) -> bytes | None:
+    """SHA-256 of a source that imports numba (or this module), or None for one that does not (keyed by mtime and size:
+    re-read on edit)."""
+    data = Path(path).read_bytes()
+    compiles = any(key in data for key in (b"from numba", b"import numba", b"from rovermarl.jit import"))
+    return hashlib.sha256(data).digest() if compiles else None
+
+
+def _dir_stamp(directory: Path, recursive: bool) -> list[tuple[str, bytes]]:
+    out = []
+    for path in sorted(directory.rglob("*.py") if recursive else directory.glob("*.py")):
+        st = path.stat()
+        digest = _file_hash(str(path), st.st_mtime_ns, st.st_size)
+        if digest is not None:
+            out.append((str(path.relative_to(directory)), digest))
+    return out
+
+
+def sources_stamp(py_file: str) -> str:
+    """The stamp of a function compiled from ``py_file``: a hash of every numba-using source of rovermarl and, for a
+    file outside the package, of its own directory."""
+    h = hashlib.sha256()
+    parts = _dir_stamp(PACKAGE, recursive=True)
+    here = Path(py_file).resolve().parent
+    if not here.is_relative_to(PACKAGE):
+        parts += _dir_stamp(here, recursive=False)
+    for name, digest in parts:
+        h.update(name.encode() + b"\0" + digest)
+    return h.hexdigest()
+
+
+class SourcesLocator(caching._CacheLocator):
+    """numba's own locator for the function (where its cache lives), with :func:`sources_stamp` added to the stamp."""
+
+    def __init__(self, inner, py_file: str):
+        self._inner, self._py_file = inner, py_file
+
+    def ensure_cache_path(self):
+        self._inner.ensure_cache_path()
+
+    def get_cache_path(self):
+        return self._inner.get_cache_path()
+
+    def get_source_stamp(self):
+        debug = (bool(config.DEBUGINFO_DEFAULT), bool(config.ENABLE_PROFILING))   # a debug build is cached apart
+        return self._inner.get_source_stamp(), sources_stamp(self._py_file), debug
+
+    def get_disambiguator(self):
+        return self._inner.get_disambiguator()
+
+    @classmethod
+    def from_function(cls, py_func, py_file):
+        for other in _NUMBA_LOCATORS:
+            inner = other.from_function(py_func, py_file)
+            if inner is not None:
+                return cls(inner, os.fspath(py_file))
+        return None
+
+
+_NUMBA_LOCATORS = [c for c in caching.CacheImpl._locator_classes if c is not SourcesLocator]
+if SourcesLocator not in caching.CacheImpl._locator_classes:
+    caching.CacheImpl._locator_classes.insert(0, SourcesLocator)
