@@ -68,8 +68,10 @@ def as_float32(args):
 
 
 def with_modes(rollout, args):
-    """The current kernel also takes ``speed_mode, reward_mode`` (the SPEC reading: 0, 0); 4c4ae3c's does not."""
-    return args + (0, 0) if rollout is kernel.rollout else args
+    """The arguments as ``rollout`` takes them: 4c4ae3c's kernel the world's arrays and numbers one by one; the
+    current kernel the world as one :class:`~rovermarl.env.kernel.KernelWorld`, with ``speed_mode, reward_mode``
+    (the SPEC reading: 0, 0)."""
+    return (*args[:3], kernel.KernelWorld(*args[3:], 0, 0)) if rollout is kernel.rollout else args
 
 
 def run_kernel(rollout, args, record: bool):

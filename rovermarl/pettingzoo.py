@@ -101,10 +101,7 @@ class RoverParallelEnv(ParallelEnv):
         f = self._f = np.dtype(world.dtype).type                          # env.dtype: the kernel's precision
         self._obs_space = spaces.Box(low.astype(f), high.astype(f), dtype=f)
         self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=f)
-        self._mode = kernel.REWARDS.index(world.reward)
-        self._coupling, self._value = np.array(world.coupling, np.int64), np.array(world.value, np.float64)
-        self._poi, self._type = world.poi_xy.astype(f), world.poi_sensor_type.astype(f)   # as World.kernel_args
-        self._radius = f(world.obs_radius)
+        self._k = world.kernel                                              # the world as the kernel reads it
         self._rng = np.random.default_rng()
         self.t = 0
 
@@ -153,12 +150,13 @@ class RoverParallelEnv(ParallelEnv):
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
                 a[0, i] = self.check_action(agent, actions[agent])
-        kernel.move(self.xy, self.heading, a, f(w.v_max), f(w.w_max), kernel.SPEEDS.index(w.speed))
+        k = self._k
+        kernel.move(self.xy, self.heading, a, k.v_max, k.w_max, k.speed_mode)
         self.t += 1
         self.path[self.t] = self.xy[0]
         before, self.value = self.value, self._running_return()
         done = self.t == w.steps
-        reward = self.value - before if self._mode != 0 else self.value if done else 0.0
+        reward = self.value - before if self._k.reward_mode != kernel.FINAL else self.value if done else 0.0
         agents = self.agents
         out = (self._observe(), dict.fromkeys(agents, reward), dict.fromkeys(agents, False),
                dict.fromkeys(agents, done), self._infos())
@@ -194,26 +192,26 @@ class RoverParallelEnv(ParallelEnv):
 
     def _running_return(self) -> float:
         """The team's return so far in the world's reading (after the last step: the episode's return)."""
-        w = self.world
+        k = self._k
         xy, out = self.xy.astype(np.float64), np.empty(1)                      # the rollout's reward reads float64
-        if self._mode == 0:                                                    # final: the positions now
-            kernel.reward(xy, self._poi, self._coupling, self._value, self._radius, out)
+        if k.reward_mode == kernel.FINAL:                                      # final: the positions now
+            kernel.reward(xy, k.poi_xy, k.coupling, k.value, k.obs_radius, out)
             return float(out[0])
-        kernel.fold(self._mode, xy, self._poi, self._coupling, self._value, self._radius, self._count,
-                    self._step, self._peak, self._acc)
-        kernel.settle(self._mode, w.steps, self._coupling, self._value, self._peak, self._acc, out)
+        kernel.fold(k.reward_mode, xy, k.poi_xy, k.coupling, k.value, k.obs_radius, self._count, self._step,
+                    self._peak, self._acc)
+        kernel.settle(k.reward_mode, k.steps, k.coupling, k.value, self._peak, self._acc, out)
         return float(out[0])
 
     def _observe(self) -> dict:
         w = self.world
         obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
-        kernel.sense(self.xy, self.heading, self._poi, self._type, self._f(w.sensor_range), obs)
+        kernel.sense(self.xy, self.heading, self._k.poi_xy, self._k.poi_type, self._k.sensor_range, obs)
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
 
     def _infos(self) -> dict:
         w = self.world
         count = np.zeros((1, w.n_pois), np.int64)
-        kernel.observers(self.xy.astype(np.float64), self._poi, self._radius, count)
+        kernel.observers(self.xy.astype(np.float64), self._k.poi_xy, self._k.obs_radius, count)
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 

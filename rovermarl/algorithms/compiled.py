@@ -59,7 +59,7 @@ def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> t
             rng_mut, rng_sel, 0 if exp3 else selector.value, arms, getattr(selector, "gamma", 0.0),
             selector.reward_rule == "gain", selector.f_max, log_w, probs,
             mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]), mut.low, mut.high, algo.accept.strict,
-            args, final, parent_poi, poi_xy, radius,
+            *args, final, parent_poi, poi_xy, radius,
             h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", _NO_PROBS))
         if t > 0 and h["accepted"][t - 1]:                   # the generation that stopped the call kept its team
             observer.accepted(generation + t, team.genomes(parents.copy()), f_parent, f_parent != f_before)
@@ -71,13 +71,13 @@ def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> t
 
 @njit(cache=True)
 def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_sel, fixed_k, arms,
-                 gamma, gain, f_max, log_w, probs, p_gaussian, sigma, m, low, high, strict, world, final_xy,
+                 gamma, gain, f_max, log_w, probs, p_gaussian, sigma, m, low, high, strict, xy0, h0, world, final_xy,
                  parent_poi, poi_xy, radius, out_score, out_k, out_accepted, out_switched, out_child, out_probs):
     """Generations t..n-1 of a chunk, up to and including the first that keeps its children; returns the next t
     and the parents' score. ``parents`` (M, P) and EXP3's ``log_w``, ``probs`` (K,) change in place; the
     generation's k, acceptance, switched count (-1: not measured), child score and score go to ``out_*`` (n,),
-    EXP3's probabilities before its choice to ``out_probs`` (n, K). ``world`` is ``World.kernel_args(ic)``."""
-    xy0, h0 = world[0], world[1]
+    EXP3's probabilities before its choice to ``out_probs`` (n, K). ``xy0``, ``h0``, ``world`` are
+    ``World.kernel_args(ic)``: the initial conditions and the world's :class:`~rovermarl.env.kernel.KernelWorld`."""
     returns = np.empty(h0.shape[0])
     team = np.empty((n_rovers, parents.shape[1]), dtype=xy0.dtype)      # in the kernel's precision (env.dtype)
     children = np.empty_like(parents)
@@ -95,8 +95,7 @@ def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_se
             children[i] = mixed(parents[i], rng_mut, p_gaussian, sigma, m, low, high)
         for r in range(n_rovers):                                         #    the team the world sees
             team[r] = children[0] if homogeneous else children[r]
-        rollout(team, xy0, h0, world[2], world[3], world[4], world[5], world[6], world[7], world[8], world[9],
-                world[10], world[11], world[12], world[13], returns, no_xy, no_heading, final_xy)
+        rollout(team, xy0, h0, world, returns, no_xy, no_heading, final_xy)
         f_child = score(returns)                                          # 4. evaluate the team
         mutated[:] = homogeneous
         mutated[chosen] = True

@@ -103,7 +103,7 @@ class World:
         object.__setattr__(self, "_type", types[self.poi_type])
         f = np.dtype(self.dtype).type                              # env.dtype: the kernel's precision
         object.__setattr__(self, "_float", f)
-        object.__setattr__(self, "_kernel_world", (         # the rollout's arguments after the initial conditions
+        object.__setattr__(self, "kernel", kernel.KernelWorld(    # the world as the kernel reads it, passed whole
             self.poi_xy.astype(f), self._type.astype(f), self._coupling, self._value, self.steps, self.hidden,
             f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
             kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward)))
@@ -291,18 +291,18 @@ class World:
         return score(self.returns(genomes, ic, final_xy))
 
     def kernel_args(self, ic: InitialConditions) -> tuple:
-        """The arguments of :func:`kernel.rollout <rovermarl.env.kernel.rollout>` before its outputs: the initial
-        conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then the world's arrays and
-        numbers, e.g. for a compiled loop that evaluates teams itself. Floats are in ``env.dtype`` (the genomes
-        must be too)."""
-        return (*self._in_dtype(*self._batch(*ic)), *self._kernel_world)
+        """The arguments of :func:`kernel.rollout <rovermarl.env.kernel.rollout>` after the genomes and before its
+        outputs: the initial conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then
+        :attr:`kernel` (the world's :class:`~rovermarl.env.kernel.KernelWorld`), e.g. for a compiled loop that
+        evaluates teams itself. Floats are in ``env.dtype`` (the genomes must be too)."""
+        return (*self._in_dtype(*self._batch(*ic)), self.kernel)
 
     def _in_dtype(self, *arrays):
         """Checked float64 arrays in ``env.dtype``, the kernel's precision (no copy for float64)."""
         return tuple(a.astype(self._float, copy=False) for a in arrays)
 
     def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(*self._in_dtype(genomes, xy0, h0), *self._kernel_world, returns, traj_xy, traj_heading,
+        kernel.rollout(*self._in_dtype(genomes, xy0, h0), self.kernel, returns, traj_xy, traj_heading,
                        _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):

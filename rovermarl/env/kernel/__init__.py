@@ -12,19 +12,21 @@
 - :mod:`~rovermarl.env.kernel.reward`: :func:`reward` (with :func:`observers` and :func:`payout`), the
   per-step reward readings :func:`fold` and :func:`settle`, the score :func:`score` (numpy's summation order)
   and the phenotypic coupling measure :func:`switched`;
-- :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path).
+- :mod:`~rovermarl.env.kernel.fused`: :func:`rollout`, the stages fused over E episodes x T steps (the hot path), on
+  :class:`KernelWorld`, the world's one record.
 
 numba's cache follows every source a compiled function may reach (:mod:`rovermarl.jit`): an edit of any kernel file
 recompiles its callers on the next run; no ``__pycache__`` needs deleting.
 """
 
 from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)
-from rovermarl.env.kernel.fused import rollout
+from rovermarl.env.kernel.fused import KernelWorld, rollout
 from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
 from rovermarl.env.kernel.reward import fold, observers, pairwise_sum, payout, reward, score, settle, switched
-from rovermarl.env.kernel.rules import POI_TYPES, REWARDS, SPEEDS, bearing, poi_of, reading, speed, turn, within
+from rovermarl.env.kernel.rules import FINAL, POI_TYPES, REWARDS, SPEEDS, bearing, poi_of, reading, speed, turn, within
 from rovermarl.env.kernel.stages import act, move, sense, sense_libm
 
-__all__ = ["POI_TYPES", "REWARDS", "SPEEDS", "act", "atan2", "bearing", "fold", "move", "observers", "pairwise_sum",
-           "payout", "poi_of", "reading", "reward", "rollout", "score", "sense", "sense_libm", "settle", "sincos",
-           "sincos_all", "speed", "switched", "target", "tanh", "turn", "within", "wrap"]
+__all__ = ["FINAL", "POI_TYPES", "REWARDS", "SPEEDS", "KernelWorld", "act", "atan2", "bearing", "fold", "move",
+           "observers", "pairwise_sum", "payout", "poi_of", "reading", "reward", "rollout", "score", "sense",
+           "sense_libm", "settle", "sincos", "sincos_all", "speed", "switched", "target", "tanh", "turn", "within",
+           "wrap"]

@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from rovermarl.env.kernel.checks import input_rows, mlp_finite
@@ -13,16 +15,37 @@ from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_fl
 from rovermarl.jit import njit
 
 
-@njit(**FAST)
-def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden,
-            sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, returns, traj_xy, traj_heading, final_xy):
-    """Run E episodes of T steps for one team; the per-episode team returns go to ``returns`` (E,).
+class KernelWorld(NamedTuple):
+    """The world as the kernel reads it, owned by :class:`~rovermarl.env.World` (``World.kernel``) and passed whole.
 
-    genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N); poi_xy (P, 2), poi_type (P,) (the sensors'
-    third number), coupling (P,) int, value (P,); ``steps`` T, ``hidden`` H; w_max in radians; ``speed_mode`` and
-    ``reward_mode`` the indices of ``env.speed`` and ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`.
-    The dynamics run in the precision of ``genomes``, ``xy0``, ``heading0``, ``poi_xy``, ``poi_type`` and the four
-    float numbers (all float64, or all float32 under ``env.dtype=float32``); returns and trajectories are float64.
+    poi_xy (P, 2) and poi_type (P,) (the sensors' third number) in the kernel's precision (``env.dtype``); coupling
+    (P,) int64; value (P,) float64; ``steps`` T and ``hidden`` H; sensor_range, obs_radius, v_max and w_max (radians)
+    in the kernel's precision; ``speed_mode`` and ``reward_mode`` the indices of ``env.speed`` and ``env.reward`` in
+    :mod:`~rovermarl.env.kernel.rules`.
+    """
+
+    poi_xy: np.ndarray
+    poi_type: np.ndarray
+    coupling: np.ndarray
+    value: np.ndarray
+    steps: int
+    hidden: int
+    sensor_range: float
+    obs_radius: float
+    v_max: float
+    w_max: float
+    speed_mode: int
+    reward_mode: int
+
+
+@njit(**FAST)
+def rollout(genomes, xy0, heading0, w, returns, traj_xy, traj_heading, final_xy):
+    """Run E episodes of T steps for one team in the world ``w`` (a :class:`KernelWorld`); the per-episode team
+    returns go to ``returns`` (E,).
+
+    genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N). The dynamics run in the precision of
+    ``genomes``, ``xy0``, ``heading0`` and ``w``'s floats (all float64, or all float32 under ``env.dtype=float32``);
+    returns and trajectories are float64.
     If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
     arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
     unless its first axis is zero-sized.
@@ -30,6 +53,15 @@ def rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hi
     After the last step, :func:`~rovermarl.env.kernel.reward.reward` scores the final positions (``env.reward=final``);
     a per-step reading folds the positions after every step instead (``fold``, then ``settle``).
     """
+    _rollout(genomes, xy0, heading0, w.poi_xy, w.poi_type, w.coupling, w.value, w.steps, w.hidden, w.sensor_range,
+             w.obs_radius, w.v_max, w.w_max, w.speed_mode, w.reward_mode, returns, traj_xy, traj_heading, final_xy)
+
+
+@njit(**FAST)
+def _rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden, sensor_range, obs_radius,
+             v_max, w_max, speed_mode, reward_mode, returns, traj_xy, traj_heading, final_xy):
+    """:func:`rollout` on the record's fields one by one: compiled as its own function, its arguments are plain
+    arrays and numbers (measured: the record unpacked inside the loop's function cost 4-8% of the kernel)."""
     n_ep, n = heading0.shape
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
