@@ -127,9 +127,7 @@ class RoverParallelEnv(ParallelEnv):
         self.path[0] = self.xy[0]
         self.t, self.value = 0, 0.0
         self.agents = list(self.possible_agents)
-        self._count = np.empty((1, w.n_pois), np.int64)
-        self._step, self._acc = np.empty(1), np.full(1, -np.inf if w.reward == "best_step" else 0.0)
-        self._peak = np.zeros((1, w.n_pois), np.int64)
+        self._count, self._step, self._peak, self._acc = kernel.start(self._k.reward_mode, 1, w.n_pois)
         return self._observe(), self._infos()
 
     def step(self, actions: dict):

@@ -154,13 +154,7 @@ class World:
     def max_return(self) -> float:
         """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo). Under
         ``reward="any_step"`` a rover may earn several POIs in one episode, so the bound is every POI's value."""
-        if self.reward == "any_step":
-            return float(sum(self.value))
-        best = np.zeros(self.n_rovers + 1)
-        for c, v in zip(self.coupling, self.value, strict=True):
-            for cap in range(self.n_rovers, c - 1, -1):
-                best[cap] = max(best[cap], best[cap - c] + v)
-        return float(best[-1])
+        return kernel.max_return(kernel.REWARDS.index(self.reward), self.coupling, self.value, self.n_rovers)
 
     # ---- initial conditions -------------------------------------------------------------------
     @property
@@ -256,8 +250,7 @@ class World:
         out = np.empty(flat.shape[0])
         p, e = self.n_pois, flat.shape[0]
         mode = kernel.REWARDS.index(self.reward)
-        count, step, peak = np.empty((e, p), np.int64), np.empty(e), np.zeros((e, p), np.int64)
-        acc = np.full(e, -np.inf if self.reward == "best_step" else 0.0)
+        count, step, peak, acc = kernel.start(mode, e, p)
         for t in range(1, self.steps + 1):
             kernel.fold(mode, np.ascontiguousarray(flat[:, t]), self.poi_xy, self._coupling, self._value,
                         float(self.obs_radius), count, step, peak, acc)

@@ -22,11 +22,22 @@ recompiles its callers on the next run; no ``__pycache__`` needs deleting.
 from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)
 from rovermarl.env.kernel.fused import KernelWorld, rollout
 from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
-from rovermarl.env.kernel.reward import fold, observers, pairwise_sum, payout, reward, score, settle, switched
+from rovermarl.env.kernel.reward import (
+                                         fold,
+                                         max_return,
+                                         observers,
+                                         pairwise_sum,
+                                         payout,
+                                         reward,
+                                         score,
+                                         settle,
+                                         start,
+                                         switched,
+)
 from rovermarl.env.kernel.rules import FINAL, POI_TYPES, REWARDS, SPEEDS, bearing, poi_of, reading, speed, turn, within
 from rovermarl.env.kernel.stages import act, move, sense, sense_libm
 
-__all__ = ["FINAL", "POI_TYPES", "REWARDS", "SPEEDS", "KernelWorld", "act", "atan2", "bearing", "fold", "move",
-           "observers", "pairwise_sum", "payout", "poi_of", "reading", "reward", "rollout", "score", "sense",
-           "sense_libm", "settle", "sincos", "sincos_all", "speed", "switched", "target", "tanh", "turn", "within",
-           "wrap"]
+__all__ = ["FINAL", "POI_TYPES", "REWARDS", "SPEEDS", "KernelWorld", "act", "atan2", "bearing", "fold", "max_return",
+           "move", "observers", "pairwise_sum", "payout", "poi_of", "reading", "reward", "rollout", "score", "sense",
+           "sense_libm", "settle", "sincos", "sincos_all", "speed", "start", "switched", "target", "tanh", "turn",
+           "within", "wrap"]

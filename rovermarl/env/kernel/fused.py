@@ -9,8 +9,8 @@ import numpy as np
 
 from rovermarl.env.kernel.checks import input_rows, mlp_finite
 from rovermarl.env.kernel.math import FAST, sincos_all
-from rovermarl.env.kernel.reward import fold, reward, settle
-from rovermarl.env.kernel.rules import BEST_STEP, FINAL
+from rovermarl.env.kernel.reward import fold, reward, settle, start
+from rovermarl.env.kernel.rules import FINAL
 from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
 from rovermarl.jit import njit
 
@@ -82,8 +82,7 @@ def _rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, h
     xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
     per_step = reward_mode != FINAL
     p = poi_xy.shape[0] if per_step else 0
-    count, peak = np.empty((n_ep, p), dtype=np.int64), np.zeros((n_ep, p), dtype=np.int64)
-    step, acc = np.empty(n_ep), np.full(n_ep, -np.inf if reward_mode == BEST_STEP else 0.0)
+    count, step, peak, acc = start(reward_mode, n_ep, p)
     for t in range(steps):
         ranged = sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
         act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite and ranged)

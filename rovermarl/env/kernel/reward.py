@@ -88,6 +88,26 @@ def reward(xy, poi_xy, coupling, value, radius, out):
 
 
 @njit(cache=True)
+def start(mode, n_ep, n_pois):
+    """A per-step reading's state for ``n_ep`` episodes before the first :func:`fold`: count (E, P) and step (E,)
+    scratch, peak (E, P) at 0, acc (E,) at -inf for ``best_step`` (its maximum over steps), else 0."""
+    acc = np.full(n_ep, -np.inf if mode == BEST_STEP else 0.0)
+    return np.empty((n_ep, n_pois), np.int64), np.empty(n_ep), np.zeros((n_ep, n_pois), np.int64), acc
+
+
+def max_return(mode: int, coupling, value, n_rovers: int) -> float:
+    """The best team return a reading can pay: a 0/1 knapsack of POIs with rover budget ``n_rovers`` (each rover at
+    one POI), or under ``any_step`` (a rover may earn several POIs in one episode) every POI's value."""
+    if mode == ANY_STEP:
+        return float(sum(value))
+    best = np.zeros(n_rovers + 1)
+    for c, v in zip(coupling, value, strict=True):
+        for cap in range(n_rovers, c - 1, -1):
+            best[cap] = max(best[cap], best[cap - c] + v)
+    return float(best[-1])
+
+
+@njit(cache=True)
 def fold(mode, xy, poi_xy, coupling, value, radius, count, step, peak, acc):
     """Fold the positions after one step into a per-step reading of ``env.reward`` (SPEC section 8; ``mode`` is its
     index in :data:`~rovermarl.env.kernel.rules.REWARDS`, not 0). xy (E, N, 2); count (E, P) int and step (E,) are
@@ -97,7 +117,7 @@ def fold(mode, xy, poi_xy, coupling, value, radius, count, step, peak, acc):
 
     >>> import numpy as np
     >>> poi, c, v = np.array([[13.0, 0.0]]), np.array([2]), np.array([3.0])
-    >>> count, step, peak, acc = np.zeros((1, 1), np.int64), np.empty(1), np.zeros((1, 1), np.int64), np.zeros(1)
+    >>> count, step, peak, acc = start(1, 1, 1)
     >>> for x in (0.0, 12.0, 0.0):                                 # two rovers meet at the duo POI at step 2 only
     ...     fold(1, np.array([[[x, 0.0], [x, 0.5]]]), poi, c, v, 2.0, count, step, peak, acc)
     >>> out = np.empty(1)
