@@ -190,15 +190,18 @@ def main(argv: list[str] | None = None) -> None:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
         sys.unraisablehook = hook
+        if _SIGNALS:              # also when the interrupt was swallowed (raised in a finalizer) and the work went on
+            term = signal.SIGTERM in _SIGNALS
+            stop = Stop(f"{PROG}: {'terminated' if term else 'interrupted'}; relaunch the same command to resume",
+                        143 if term else 130)
+        if stop:                                                     # first: what Ray's shutdown says is hidden
+            print(stop.line, file=sys.stderr, flush=True)
         if ours:
-            with _quiet_stderr() if stop or _SIGNALS else contextlib.nullcontext():   # Ray's shutdown after a
-                _stop_ray(bool(_SIGNALS))                                            # fault is noise
-    if _SIGNALS:                  # also when the interrupt was swallowed (raised in a finalizer) and the work went on
-        term = signal.SIGTERM in _SIGNALS
-        stop = Stop(f"{PROG}: {'terminated' if term else 'interrupted'}; relaunch the same command to resume",
-                    143 if term else 130)
+            if _SIGNALS and _CLI:
+                _exit_by(SIGNAL_EXIT_S, stop.code)
+            with _quiet_stderr() if stop else contextlib.nullcontext():
+                _stop_ray()
     if stop:
-        print(stop.line, file=sys.stderr)
         sys.exit(stop.code)
 
 
@@ -277,11 +280,9 @@ def _quiet_stderr():
         os.close(saved)
 
 
-def _stop_ray(signalled: bool = False) -> None:
+def _stop_ray() -> None:
     """Shut down the Ray this process started (also one cut while it started); then no process of Ray's that this
-    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut).
-    After a signal the launch must end within seconds, also on a loaded machine: Ray's processes are then ended
-    directly (SIGTERM, SIGKILL 1 s later) instead of by Ray's own shutdown (several seconds under load)."""
+    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut)."""
     import psutil
 
     started = [p for p in psutil.Process().children(recursive=True) if _is_ray(p)]
@@ -289,21 +290,37 @@ def _stop_ray(signalled: bool = False) -> None:
     if ray is not None:
         from rovermarl.parallel.ray_backend import forget_pool
         forget_pool()                                                # its actors go with this Ray
-        if not signalled:
-            with contextlib.suppress(Exception):                     # a dead GCS can make the shutdown fail
-                ray.shutdown()
+        with contextlib.suppress(Exception):                         # a dead GCS can make the shutdown fail
+            ray.shutdown()
     for _ in range(3):                                               # and orphans re-parented to us meanwhile
         started = [p for p in {*started, *psutil.Process().children(recursive=True)} if _is_ray(p)]
         if not started:
             return
-        for p in started if signalled else ():
-            with contextlib.suppress(psutil.Error):
-                p.terminate()
         _, alive = psutil.wait_procs(started, timeout=1)
         for p in alive:
             with contextlib.suppress(psutil.Error):
                 p.kill()
         psutil.wait_procs(alive, timeout=1)
+
+
+SIGNAL_EXIT_S = 3.0      # after a signal, Ray's shutdown may take this long (seconds) before the launch ends anyway
+_CLI: list[bool] = []    # set by _cli: main runs as the command, so it may end the process itself
+
+
+def _exit_by(seconds: float, code: int) -> None:
+    """End the process with ``code`` in ``seconds`` if it has not ended by then (Ray's shutdown is slow on a loaded
+    machine): Ray's processes are killed first. Ray's shutdown comes first because killing its raylet under a
+    connected driver makes Ray's core end the driver with status 1."""
+    def end() -> None:
+        import psutil
+        for p in psutil.Process().children(recursive=True):
+            if _is_ray(p):
+                with contextlib.suppress(psutil.Error):
+                    p.kill()
+        os._exit(code)
+    timer = threading.Timer(seconds, end)
+    timer.daemon = True
+    timer.start()
 
 
 def _is_ray(p) -> bool:
@@ -321,6 +338,7 @@ RAY_NAMES = ("raylet", "gcs_server")
 def _cli() -> None:
     """``main`` as a command. After a signal, the process ends without Python's finalizers: those of a Ray cut while
     it started can abort the process (SIGABRT, SIGSEGV seen) after the launch's line was printed."""
+    _CLI.append(True)
     try:
         main()
     except SystemExit as e:
