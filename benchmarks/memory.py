@@ -1,7 +1,7 @@
 """Memory and checkpoint bytes against the budget: one serial run of G generations in a fresh process, for each G.
 
 Prints one JSON line: per G the peak RSS of that process (``ru_maxrss``), the largest checkpoint written, and the
-wall time; and ``rss_growth_mb`` between the smallest and the largest G (the promise: within 150 MB from 20,000 to
+wall time; and ``rss_growth_mb`` between the smallest and the largest G (the promise: within 250 MB from 20,000 to
 500,000 generations).
 
     python benchmarks/memory.py [--generations 20000 500000] [--setup duo] [--k 1]
