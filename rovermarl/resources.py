@@ -17,6 +17,8 @@ root. In a wheel that path would be ``site-packages/conf``, which is never used:
 
 from __future__ import annotations
 
+import copy
+import functools
 import importlib.util
 from pathlib import Path
 
@@ -39,3 +41,27 @@ def _conf_dir() -> Path:
 
 
 CONF_DIR: Path = _conf_dir()
+
+
+@functools.cache
+def _load(relative: str) -> dict:
+    from omegaconf import OmegaConf
+    return OmegaConf.to_container(OmegaConf.load(CONF_DIR / relative), resolve=False)
+
+
+def packaged(relative: str) -> dict:
+    """A packaged yaml file (e.g. ``"config.yaml"``, ``"env/rovers.yaml"``) as plain containers, uninterpolated: the
+    one source of the defaults and key sets that code checks configs against (a copy; change it freely)."""
+    return copy.deepcopy(_load(relative))
+
+
+@functools.cache
+def option_keys(group: str) -> tuple[frozenset[str], frozenset[str]]:
+    """``(allowed, required)``: the keys any option of config group ``group`` has, and those every option has
+    (``_target_`` and ``defaults`` left out; an option that sets other groups too contributes its ``group`` node)."""
+    options = []
+    for path in sorted((CONF_DIR / group).glob("*.yaml")):
+        node = _load(f"{group}/{path.name}") or {}
+        node = node[group] if isinstance(node.get(group), dict) else node
+        options.append(set(node) - {"_target_", "defaults"})
+    return frozenset(set().union(*options)), frozenset(set.intersection(*options))

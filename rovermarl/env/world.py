@@ -35,6 +35,11 @@ class Rollout(NamedTuple):
     returns: np.ndarray
 
 
+def obs_dim(n_pois: int, n_rovers: int) -> int:
+    """A rover's observation size: 3 sensor numbers per POI (distance, angle, type) and 2 per rover."""
+    return 3 * n_pois + 2 * n_rovers
+
+
 @dataclass(frozen=True, eq=False)
 class World:
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
@@ -138,8 +143,8 @@ class World:
 
     @property
     def obs_dim(self) -> int:
-        """3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers)."""
-        return 3 * self.n_pois + 2 * self.n_rovers
+        """3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers): :func:`obs_dim`."""
+        return obs_dim(self.n_pois, self.n_rovers)
 
     @property
     def n_params(self) -> int:

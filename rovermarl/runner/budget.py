@@ -16,12 +16,17 @@ import os
 from dataclasses import dataclass
 
 from rovermarl import errors
+from rovermarl.env.world import obs_dim
+from rovermarl.policy import n_params
+from rovermarl.resources import packaged
 
 EVALUATION_LIMIT_S = 3600.0        # one team evaluation longer than this is refused
 NS_BASE, NS_PER_MAC, NS_PER_TARGET = 100.0, 0.35, 5.0   # per agent-step: fixed, per MLP multiply-add, per sensed target
 SIGMA_LIMIT = 1e100                # a Gaussian mutation beyond this overflows genomes within a run
-DEFAULTS = {"generations": 20000, "seeds": 16, "env.episodes": 16, "env.steps": 15, "env.n_rovers": 4,
-            "policy.hidden": 16}
+_RUN, _ENV = packaged("config.yaml"), packaged("env/rovers.yaml")
+DEFAULTS = {"generations": _RUN["generations"], "seeds": _RUN["seeds"], "env.episodes": _ENV["episodes"],
+            "env.steps": _ENV["steps"], "env.n_rovers": _ENV["n_rovers"],
+            "policy.hidden": packaged("policy/mlp.yaml")["hidden"]}      # from conf/: the keys named when too big
 
 
 @dataclass(frozen=True)
@@ -57,8 +62,8 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
-    d = 3 * p + 2 * n
-    genome = (d + 3) * h + 2
+    d = obs_dim(p, n)
+    genome = n_params(d, h)
     seeds = int(plain["seeds"])
     memory = {
         "records": 1.0 * batch_size(plain, series_bytes) * run_bytes(plain, series_bytes),   # the driver's runs

@@ -22,10 +22,10 @@ from rovermarl import errors
 from rovermarl.algorithms.base import Algorithm, build_operator
 from rovermarl.env import World
 from rovermarl.record.events import BehaviourObserver
-from rovermarl.resources import CONF_DIR
+from rovermarl.resources import CONF_DIR, packaged
 
 EvaluationFactory = Callable[..., "Evaluation"]   # (world, ic, keep_final, fresh_seed) -> Evaluation
-EVALUATION = {"fresh_ic": False, "heldout": 256}  # the evaluation section's defaults (configs from before it too)
+EVALUATION = packaged("config.yaml")["evaluation"]   # its defaults, also for configs from before the section
 
 
 @dataclass(frozen=True, eq=False)
@@ -60,7 +60,7 @@ def _evaluation(node, algorithm: Algorithm) -> dict:
     given = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
     for key in given:
         if key not in EVALUATION:
-            raise errors.ConfigError(f"evaluation.{key}", given[key], "unknown key; allowed: fresh_ic, heldout")
+            raise errors.ConfigError(f"evaluation.{key}", given[key], "unknown key; allowed: " + ", ".join(EVALUATION))
     out = {**EVALUATION, **given}
     if not isinstance(out["fresh_ic"], bool):
         raise errors.ConfigError("evaluation.fresh_ic", out["fresh_ic"], "must be true or false")

@@ -10,7 +10,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import InterpolationKeyError
 
 from rovermarl import errors
-from rovermarl.resources import CONF_DIR
+from rovermarl.resources import CONF_DIR, option_keys, packaged
 from rovermarl.runner import budget
 from rovermarl.runner.chunk import parts, to_plain
 
@@ -19,7 +19,7 @@ from rovermarl.runner.chunk import parts, to_plain
 def top_level() -> frozenset[str]:
     """The allowed top-level keys: the package's config groups and the run-level keys of ``conf/config.yaml``."""
     groups = {p.name for p in CONF_DIR.iterdir() if p.is_dir() and p.name != "__pycache__"}
-    run_keys = set(OmegaConf.load(CONF_DIR / "config.yaml")) - {"defaults", "hydra"}
+    run_keys = set(packaged("config.yaml")) - {"defaults", "hydra"}
     return frozenset(groups | run_keys)
 
 
@@ -30,10 +30,10 @@ def validate(cfg: DictConfig) -> None:
         if key not in allowed and key != "hydra":
             raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
                                      ", ".join(sorted(allowed)))
-    _keys("setup", cfg.get("setup"), {"name", "coupling", "value"}, {"name", "coupling", "value"})  # World: missing
+    _keys("setup", cfg.get("setup"), option_keys("setup")[0], option_keys("setup")[0])  # World names a missing one
     _keys("env", cfg.get("env"), None)  # World names unknown env keys
-    _keys("policy", cfg.get("policy"), {"hidden", "init_low", "init_high"})
-    _keys("ray", cfg.get("ray"), {"address", "num_cpus"}, {"address", "num_cpus"})
+    _keys(*_group("policy", cfg))
+    _keys("ray", cfg.get("ray"), set(packaged("config.yaml")["ray"]), set(packaged("config.yaml")["ray"]))
     errors.integer("seeds", cfg.get("seeds"), 1)
     errors.integer("seed", cfg.get("seed"), 0)
     errors.integer("generations", cfg.get("generations"), 1)
@@ -44,16 +44,15 @@ def validate(cfg: DictConfig) -> None:
         errors.number(f"levels[{i}]", lv)
     if cfg.get("resume") != "strict":
         _flag("resume", cfg.get("resume"), "true, false or strict")
-    _keys("checkpoint", cfg.get("checkpoint"), {"every"})
+    _keys("checkpoint", cfg.get("checkpoint"), set(packaged("config.yaml")["checkpoint"]))
     errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
     rec = cfg.get("record")
-    _keys("record", rec, {"rerun", "behaviour", "occupancy", "every", "steps"})
+    _keys(*_group("record", cfg))
     for key in ("rerun", "behaviour", "occupancy", "steps"):
         _flag(f"record.{key}", rec.get(key))
     errors.integer("record.every", rec.get("every"), 1)
     par = cfg.get("parallel")
-    _keys("parallel", par, {"backend", "workers", "chunk", "retries", "ic_shards", "stall_timeout"},
-          {"workers", "retries", "ic_shards", "stall_timeout"})
+    _keys(*_group("parallel", cfg))
     errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
     errors.integer("parallel.chunk", par.get("chunk"), 1)
     errors.integer("parallel.retries", par.get("retries", 0), 0)
@@ -84,6 +83,12 @@ def validate(cfg: DictConfig) -> None:
 def series_bytes(series) -> int:
     """Bytes per generation of an algorithm's declared series."""
     return sum(np.dtype(s.dtype).itemsize * int(np.prod(s.shape)) for s in series)
+
+
+def _group(group: str, cfg) -> tuple:
+    """``_keys`` arguments of a config group: its node, the keys of its options in conf/, those not in every one."""
+    allowed, required = option_keys(group)
+    return group, cfg.get(group), set(allowed), set(allowed - required)
 
 
 def _flag(key: str, value, allowed: str = "true or false") -> None:
