@@ -25,10 +25,9 @@ from rovermarl.config import group_names
 from rovermarl.env.world import CONF_DIR
 from tests.conftest import run_cli
 
-K_OPTIONS = "1, 2, 3, 4, adaptive, egreedy, exp3s, schedule, thompson, ucb1"
-
 TRAIN = "rovermarl.train: error: "
-OPTIONS = {g: sorted(p.stem for p in (CONF_DIR / g).glob("*.yaml")) for g in group_names()}
+OPTIONS = {g: sorted(p.stem for p in (CONF_DIR / g).glob("*.yaml")) for g in group_names()}   # from conf/
+K_OPTIONS = ", ".join(OPTIONS["k"])
 SETTINGS = settings(max_examples=30, deadline=None, derandomize=True,
                     suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 
