@@ -128,3 +128,21 @@ def test_a_signal_during_imports_or_ray_start_ends_in_one_line_and_leaves_no_pro
     assert answered < 5
     time.sleep(5)
     assert not _marked(tag)                                             # no process of the launch, Ray's included
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_a_signal_while_the_figures_are_drawn_ends_in_one_line_and_the_relaunch_draws_them(tmp_path, sig, code):
+    sweep = tmp_path / "sweep"
+    args = ("-m", "k=1,2", "setup=duo", "generations=200", "seeds=2", "parallel=serial", f"hydra.sweep.dir={sweep}")
+    proc = subprocess.Popen([sys.executable, "-m", "rovermarl.train", *args], cwd=ROOT, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    while proc.poll() is None and not (sweep / "figures").is_dir():    # the end-of-sweep callback has begun
+        time.sleep(0.002)
+    assert proc.poll() is None
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert proc.returncode == code and "Traceback" not in err and len(lines) <= 3, err[-2000:]
+    again = run_cli(*args, timeout=300)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert (sweep / "figures" / "curves_duo.png").is_file()
