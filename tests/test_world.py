@@ -205,3 +205,16 @@ def test_non_finite_targets_read_as_out_of_range(solo):
     obs = solo.observe(xy, np.zeros(4))
     np.testing.assert_array_equal(obs[1, :3], [1, 0, 0])          # a rover at NaN sees no POI
     np.testing.assert_array_equal(obs[0, 32:36], [1, 0, 1, 0])    # rovers 1 and 2 seen from rover 0
+
+
+def test_max_return_is_a_bound_also_where_observation_discs_overlap():
+    # at poi_distance 9 neighbouring POIs are 5.56 apart: a rover within 3 (or 4) of both earns both, so the
+    # one-POI-per-rover knapsack (6 on duo) is no bound; the geometry study saw returns up to 8.875 there
+    for r in (3.0, 4.0):
+        w = make_world("duo", obs_radius=r, poi_distance=9.0)
+        assert w.max_return == sum(w.value) == 14.0
+        mid = (w.poi_xy[1] + w.poi_xy[2]) / 2                             # between two solo POIs
+        xy = np.array([mid, w.poi_xy[3], w.poi_xy[4], w.poi_xy[6]])
+        assert w.team_return(xy) > 4.0                                    # 4 rovers, 5 POIs paid
+    assert make_world("duo", obs_radius=4.0).max_return == 6.0              # 8.03 apart at 13: no overlap
+    assert make_world("duo", obs_radius=2.0, poi_distance=9.0).max_return == 6.0

@@ -158,8 +158,11 @@ class World:
     @property
     def max_return(self) -> float:
         """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo). Under
-        ``reward="any_step"`` a rover may earn several POIs in one episode, so the bound is every POI's value."""
-        return kernel.max_return(kernel.REWARDS.index(self.reward), self.coupling, self.value, self.n_rovers)
+        ``reward="any_step"``, or where two POIs' observation discs overlap (e.g. ``poi_distance=9, obs_radius=3``:
+        one rover can observe both), a rover may earn several POIs, so the bound is every POI's value."""
+        d = np.linalg.norm(self.poi_xy[:, None] - self.poi_xy[None], axis=-1)[np.triu_indices(self.n_pois, 1)]
+        overlap = bool((d < 2 * self.obs_radius).any())
+        return kernel.max_return(kernel.REWARDS.index(self.reward), self.coupling, self.value, self.n_rovers, overlap)
 
     # ---- initial conditions -------------------------------------------------------------------
     @property

@@ -95,10 +95,11 @@ def start(mode, n_ep, n_pois):
     return np.empty((n_ep, n_pois), np.int64), np.empty(n_ep), np.zeros((n_ep, n_pois), np.int64), acc
 
 
-def max_return(mode: int, coupling, value, n_rovers: int) -> float:
+def max_return(mode: int, coupling, value, n_rovers: int, overlap: bool = False) -> float:
     """The best team return a reading can pay: a 0/1 knapsack of POIs with rover budget ``n_rovers`` (each rover at
-    one POI), or under ``any_step`` (a rover may earn several POIs in one episode) every POI's value."""
-    if mode == ANY_STEP:
+    one POI), or, where a rover may earn several POIs (``any_step``, or POIs whose observation discs ``overlap``),
+    the bound of every POI's value."""
+    if mode == ANY_STEP or overlap:
         return float(sum(value))
     best = np.zeros(n_rovers + 1)
     for c, v in zip(coupling, value, strict=True):
