@@ -2,6 +2,11 @@
 conditions. Prints one JSON line.
 
     python benchmarks/float32_agreement.py [--teams 10000] [--setups solo,duo]
+    python benchmarks/float32_agreement.py --runs 'SWEEP/*duo*/runs/seed_*' [--setups duo]
+
+With ``--runs``, the teams are instead the final teams (``genomes.npy``) of finished runs of the first setup, each on
+its own 16 initial conditions (``initial_conditions.npz``) and on its 256 held-out ones (``World.heldout_ic``):
+whether float32 would have told the same story about trained teams, where random teams mostly score 0.
 
 Team ``t`` is the paper's initial genomes (uniform in [-2, 2], ``policy.init_low/high``) drawn from seed ``t``, on the
 16 initial conditions ``World.run_ic(t)``. Per setup it counts the episodes whose team return differs, the teams whose
@@ -57,12 +62,46 @@ def agreement(setup: str, teams: int) -> dict:
             "final_xy_distance_max": float(dist.max())}
 
 
+def trained(setup: str, pattern: str) -> dict:
+    """The agreement on the final teams of the finished runs matching ``pattern``: their own and held-out ICs."""
+    import glob
+    from pathlib import Path
+
+    w64, w32 = make_world(setup), make_world(setup, dtype="float32")
+    runs = sorted(Path(p) for p in glob.glob(pattern) if (Path(p) / "run.json").is_file())
+    own = held = own_eps = held_eps = 0
+    own_gap, held_gap = [], []
+    for run in runs:
+        genomes, seed = np.load(run / "genomes.npy"), json.loads((run / "run.json").read_text())["seed"]
+        with np.load(run / "initial_conditions.npz") as z:
+            ic = (z["xy"], z["heading"])
+        for name, ics in (("own", ic), ("held", w64.heldout_ic(seed))):
+            r64, r32 = w64.returns(genomes, ics), w32.returns(genomes, ics)
+            if name == "own":
+                own, own_eps = own + int(np.sum(r64 != r32)), own_eps + len(r64)
+                own_gap.append(abs(r64.mean() - r32.mean()))
+            else:
+                held, held_eps = held + int(np.sum(r64 != r32)), held_eps + len(r64)
+                held_gap.append(abs(r64.mean() - r32.mean()))
+    return {"runs": len(runs), "pattern": pattern,
+            "own_episodes": own_eps, "own_episode_returns_differing": own,
+            "own_score_gap_max": float(max(own_gap, default=0.0)),
+            "heldout_episodes": held_eps, "heldout_episode_returns_differing": held,
+            "heldout_score_gap_max": float(max(held_gap, default=0.0))}
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--teams", type=int, default=10_000)
     p.add_argument("--setups", default="solo,duo")
+    p.add_argument("--runs", default=None, help="glob of finished run dirs: their final teams instead of random ones")
     a = p.parse_args()
     t = time.perf_counter()
+    if a.runs:
+        setup = a.setups.split(",")[0]
+        print(json.dumps({"benchmark": "float32_agreement", "teams": "final teams of finished runs", "setup": setup,
+                          **trained(setup, a.runs), "seconds": round(time.perf_counter() - t, 1)}))
+        return
     out = {setup: agreement(setup, a.teams) for setup in a.setups.split(",")}
     print(json.dumps({"benchmark": "float32_agreement", "genomes": "uniform(-2, 2), seed t", "ic": "World.run_ic(t)",
                       **out, "seconds": round(time.perf_counter() - t, 1), "cpus": os.cpu_count()}))
