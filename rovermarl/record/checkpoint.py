@@ -95,6 +95,8 @@ class RunRecord:
             if path.exists():
                 os.replace(path, previous(path))
             os.replace(new, path)
+        except OSError as e:                                             # name the checkpoint, not its temp copy
+            raise OSError(e.errno, e.strerror, str(path)) from None
         finally:
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(new)
