@@ -53,7 +53,7 @@ from rovermarl.runner.chunk import Run, parts, to_plain
 
 def kernel_inputs(world, seed: int = 0):
     """Arguments of ``rollout`` without its outputs: a random team, the world's starts and the world's arrays."""
-    xy0, h0 = world.initial_conditions(seed=seed)
+    xy0, h0, _ = world.initial_conditions(seed=seed)
     genomes = np.random.default_rng(seed).uniform(-2, 2, (world.n_rovers, world.n_params))
     return (genomes, xy0, h0, world.poi_xy, world._type, world._coupling, world._value, world.steps, world.hidden,
             float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
@@ -71,7 +71,12 @@ def with_modes(rollout, args):
     """The arguments as ``rollout`` takes them: 4c4ae3c's kernel the world's arrays and numbers one by one; the
     current kernel the world as one :class:`~rovermarl.env.kernel.KernelWorld`, with ``speed_mode, reward_mode``
     (the SPEC reading: 0, 0)."""
-    return (*args[:3], kernel.KernelWorld(*args[3:], 0, 0)) if rollout is kernel.rollout else args
+    if rollout is not kernel.rollout:
+        return args
+    genomes, xy0, h0, poi_xy, poi_type, coupling, value, steps, hidden, *floats = args
+    d = 3 * poi_xy.shape[0] + 2 * genomes.shape[0]
+    return (genomes, xy0, h0, kernel.KernelWorld(poi_xy, poi_type, coupling, value, steps, hidden, d, *floats, 0, 0,
+                                                 np.empty((h0.shape[0], 0)), ()))
 
 
 def run_kernel(rollout, args, record: bool):

@@ -21,8 +21,9 @@ the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_
 ``reset(seed=s)`` (``s`` an integer >= 0; anything else is refused with a ``ValueError``) starts from
 ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those initial conditions
 in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws the next start from
-a stream of the last seed. Each step runs the world's own compiled stages
-(:mod:`rovermarl.env.kernel.stages`, ``move`` then ``sense``), the rollout's dynamics, one implementation.
+a stream of the last seed. Each step runs the world's own compiled hooks (``World.compiled``: ``step``, ``observe``,
+``returns_of``; :mod:`rovermarl.env.kernel.hooks`), the rollout's dynamics, one implementation, for the paper's world
+and any world plug-in (``RoverParallelEnv(world)``).
 
 ``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
 so far in the world's reading (the episode's return after the last step, bit-identical to ``World.returns``), and
@@ -94,10 +95,8 @@ class RoverParallelEnv(ParallelEnv):
         self.world, self.render_mode = world, render_mode
         self.possible_agents = [f"rover_{i}" for i in range(world.n_rovers)]
         self.agents: list[str] = []
-        kinds = np.abs(world.poi_sensor_type).max(initial=1.0)
-        low = np.full(world.obs_dim, -1.0)
-        high = np.ones(world.obs_dim)
-        low[2:3 * world.n_pois:3], high[2:3 * world.n_pois:3] = -kinds, kinds   # the POI type slots
+        low = np.concatenate([lo for _, lo, _ in world.obs_blocks()])       # the world's observation blocks
+        high = np.concatenate([hi for _, _, hi in world.obs_blocks()])
         f = self._f = np.dtype(world.dtype).type                          # env.dtype: the kernel's precision
         self._obs_space = spaces.Box(low.astype(f), high.astype(f), dtype=f)
         self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=f)
@@ -117,17 +116,17 @@ class RoverParallelEnv(ParallelEnv):
         the last seed. Returns observations and infos per agent. ``seed``: None or an integer >= 0."""
         if seed is not None:
             seed = _seed(seed)
-            xy, heading = self.world.initial_conditions(seed=seed, n=1)
+            xy, heading, layout = self.world.initial_conditions(seed=seed, n=1)
             self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
         else:
-            xy, heading = self.world.initial_conditions(self._rng, n=1)
+            xy, heading, layout = self.world.initial_conditions(self._rng, n=1)
         w = self.world
         self.xy, self.heading = xy.astype(self._f), heading.astype(self._f)  # (1, N, 2), (1, N)
+        self.layout, self._k = layout[0], w.kernel_for(layout)              # the world as the kernel reads it
         self.path = np.empty((w.steps + 1, w.n_rovers, 2))
         self.path[0] = self.xy[0]
         self.t, self.value = 0, 0.0
         self.agents = list(self.possible_agents)
-        self._count, self._step, self._peak, self._acc = kernel.start(self._k.reward_mode, 1, w.n_pois)
         return self._observe(), self._infos()
 
     def step(self, actions: dict):
@@ -148,8 +147,7 @@ class RoverParallelEnv(ParallelEnv):
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
                 a[0, i] = self.check_action(agent, actions[agent])
-        k = self._k
-        kernel.move(self.xy, self.heading, a, k.v_max, k.w_max, k.speed_mode)
+        w.compiled.step(self.xy, self.heading, a, self._k)                  # the rollout's move hook
         self.t += 1
         self.path[self.t] = self.xy[0]
         before, self.value = self.value, self._running_return()
@@ -190,26 +188,20 @@ class RoverParallelEnv(ParallelEnv):
 
     def _running_return(self) -> float:
         """The team's return so far in the world's reading (after the last step: the episode's return)."""
-        k = self._k
-        xy, out = self.xy.astype(np.float64), np.empty(1)                      # the rollout's reward reads float64
-        if k.reward_mode == kernel.FINAL:                                      # final: the positions now
-            kernel.reward(xy, k.poi_xy, k.coupling, k.value, k.obs_radius, out)
-            return float(out[0])
-        kernel.fold(k.reward_mode, xy, k.poi_xy, k.coupling, k.value, k.obs_radius, self._count, self._step,
-                    self._peak, self._acc)
-        kernel.settle(k.reward_mode, k.steps, k.coupling, k.value, self._peak, self._acc, out)
+        out = np.empty(1)                                                      # the rollout's reward hooks
+        self.world.compiled.returns_of(np.ascontiguousarray(self.path[None, : self.t + 1]), self._k, out)
         return float(out[0])
 
     def _observe(self) -> dict:
         w = self.world
         obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
-        kernel.sense(self.xy, self.heading, self._k.poi_xy, self._k.poi_type, self._k.sensor_range, obs)
+        w.compiled.observe(self.xy, self.heading, self._k, obs)                 # the rollout's sense hook
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
 
     def _infos(self) -> dict:
         w = self.world
         count = np.zeros((1, w.n_pois), np.int64)
-        kernel.observers(self.xy.astype(np.float64), self._k.poi_xy, self._k.obs_radius, count)
+        kernel.observers(self.xy.astype(np.float64), w.poi_positions(self.layout), self._k.obs_radius, count)
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 
@@ -222,7 +214,7 @@ class RoverParallelEnv(ParallelEnv):
         fig = new_figure(4.0, 4.0)
         ax = fig.add_subplot()
         lim = self.world.poi_distance + 2 * self.world.obs_radius
-        scene(ax, self.world, self.path[None, : self.t + 1], lim, lw=1.5, ms=6)
+        scene(ax, self.world, self.path[None, : self.t + 1], lim, lw=1.5, ms=6, layout=self.layout)
         ax.set_title(f"step {self.t}/{self.world.steps}   return {self.value:g}", fontsize=9)
         fig.canvas.draw()
         image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()

@@ -61,6 +61,8 @@ def parser() -> argparse.ArgumentParser:
                    help="run dir (runs/seed_XXX) whose behaviour.npz the update figure shows")
     p.add_argument("--update-gen", type=int, default=None, metavar="G",
                    help="logged generation shown 'after' in the update figure (default: first score rise)")
+    p.add_argument("--trust-config", dest="trust", action="store_true",
+                   help="build world plug-ins the jobs' configs name (env._target_: their modules run code)")
     return p
 
 
@@ -72,7 +74,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     from rovermarl.analysis.figures import plot_sweep
     try:
         index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
-                           args.update_gen, log=log, xscale=args.xscale, x=args.x)
+                           args.update_gen, log=log, xscale=args.xscale, x=args.x, trust=args.trust)
     except SweepError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
@@ -101,7 +103,8 @@ class PlotCallback(Callback):
             from rovermarl.analysis.figures import plot_sweep
 
             sweep = Path(str(config.hydra.sweep.dir))
-            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats or list(FORMATS))
+            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats or list(FORMATS),
+                               trust=True)                      # the sweep this invocation ran
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
             log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, e)

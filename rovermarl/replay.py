@@ -30,6 +30,8 @@ import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from rovermarl.errors import ConfigError
+
 
 class ReplayError(Exception):
     """Bad input; the message is printed as one line."""
@@ -57,8 +59,9 @@ def find_run(path: Path, seed: int | None) -> Path:
     return match[0]
 
 
-def resimulate(run: Path, ic_seed: int | None, out: Path | None) -> Path:
-    """Record the final team of ``run`` on its initial conditions (or fresh ones from ``ic_seed``) to an .rrd."""
+def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = False) -> Path:
+    """Record the final team of ``run`` on its initial conditions (or fresh ones from ``ic_seed``) to an .rrd. A world
+    plug-in's run needs ``trust`` (``--trust-config``: its module runs code)."""
     from rovermarl.env import World
     from rovermarl.record.events import occupancy
     from rovermarl.record.rerun_log import write_rrd
@@ -67,11 +70,14 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None) -> Path:
     cfg_path = next((p for p in (job / ".hydra" / "config.yaml", job / "config.yaml") if p.exists()), None)
     if cfg_path is None or not (run / "genomes.npy").exists():
         raise ReplayError(f"{run}: --resim needs genomes.npy and the job's .hydra/config.yaml (or config.yaml)")
-    world = World.from_config(OmegaConf.load(cfg_path))
+    try:
+        world = World.from_config(OmegaConf.load(cfg_path), trust)
+    except ConfigError as e:
+        raise ReplayError(f"{cfg_path}: {e}") from None
     genomes = np.load(run / "genomes.npy")
     if ic_seed is None:
         with np.load(run / "initial_conditions.npz") as z:
-            ic = z["xy"], z["heading"]
+            ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)
     else:
         ic = world.initial_conditions(ic_seed)
     roll = world.rollout(genomes, ic)
@@ -223,6 +229,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--resim", action="store_true", help="re-simulate the final genomes and record a new .rrd")
     p.add_argument("--ic-seed", type=int, help="with --resim: draw fresh initial conditions from this seed")
     p.add_argument("--out", type=Path, help="with --resim: where to write the .rrd")
+    p.add_argument("--trust-config", dest="trust", action="store_true",
+                   help="with --resim: build a world plug-in the job's config names (its module runs code)")
     p.add_argument("--no-viewer", action="store_true", help="print the viewer commands instead of starting one")
     p.add_argument("--web", action="store_true", help="serve the web viewer even where there is a display")
     p.add_argument("--web-port", type=int, default=9090, help="web viewer's HTTP port (default 9090, or a free one)")
@@ -237,7 +245,7 @@ def main(argv: list[str] | None = None) -> None:
         if a.resim:
             if target.suffix == ".rrd":
                 raise ReplayError(f"{target}: --resim needs a run dir or job dir, not an .rrd")
-            rrd = resimulate(target, a.ic_seed, a.out)
+            rrd = resimulate(target, a.ic_seed, a.out, a.trust)
         else:
             rrd = target if target.suffix == ".rrd" else target / "run.rrd"
             if not rrd.exists():

@@ -22,7 +22,7 @@ from hypothesis import strategies as st
 
 from rovermarl import plot, replay, train
 from rovermarl.config import group_names
-from rovermarl.env.world import CONF_DIR
+from rovermarl.resources import CONF_DIR
 from tests.conftest import run_cli
 
 TRAIN = "rovermarl.train: error: "

@@ -7,7 +7,7 @@ import pytest
 
 from rovermarl import train
 from rovermarl.config import group_names, quote_numeric_options
-from rovermarl.env.world import CONF_DIR
+from rovermarl.resources import CONF_DIR
 from rovermarl.runner import build
 from rovermarl.runner.validate import validate
 from tests.conftest import make_cfg, run_cli

@@ -255,7 +255,7 @@ def test_stages_one_at_a_time_give_the_rollout_bit_for_bit(setup, overrides):
 def test_sense_and_act_give_the_fused_loops_numbers():
     """The batch-first adapters read and write the flat layout of the fused loops (one step, checked by hand)."""
     world = make_world("duo", n_rovers=3, hidden=4)
-    xy, heading = world.initial_conditions(seed=2, n=5)
+    xy, heading, _ = world.initial_conditions(seed=2, n=5)
     xy = xy + np.random.default_rng(0).uniform(-20, 20, xy.shape)
     e, n, d = 5, 3, world.obs_dim
     obs = np.empty((e, n, d))

@@ -83,7 +83,7 @@ def test_out_of_range_poi_reads_1_0_0(duo):
 
 
 def test_observe_batches(solo):
-    xy, heading = solo.initial_conditions(seed=3, n=5)
+    xy, heading, _ = solo.initial_conditions(seed=3, n=5)
     batch = solo.observe(xy, heading)
     assert batch.shape == (5, 4, 38)
     for e in range(5):
@@ -152,14 +152,14 @@ def test_rollout_matches_evaluate_and_is_deterministic(duo):
 
 
 def test_initial_conditions_boxes_and_headings(solo):
-    xy, heading = solo.initial_conditions(seed=7, n=2000)
+    xy, heading, _ = solo.initial_conditions(seed=7, n=2000)
     assert xy.shape == (2000, 4, 2) and heading.shape == (2000, 4)
     signs = np.array([[1, 1], [-1, 1], [-1, -1], [1, -1]])
     scaled = xy * signs
     assert scaled.min() >= 0 and scaled.max() <= 0.5 and scaled.max() > 0.49
     for i in range(4):
         assert heading[:, i].min() >= i * math.pi / 2 and heading[:, i].max() <= (i + 1) * math.pi / 2
-    a, b = solo.initial_conditions(seed=7, n=2000)
+    a, b, _ = solo.initial_conditions(seed=7, n=2000)
     np.testing.assert_array_equal(a, xy)
     assert not np.array_equal(solo.initial_conditions(seed=8)[0], xy[:16])
 
@@ -179,7 +179,7 @@ def test_world_rejects_bad_values():
 def test_start_squares_generalise_the_quadrants(n):
     """For N != 4, rover i starts in the quadrant square turned so its diagonal bisects heading sector i."""
     w = make_world("solo", n_rovers=n)
-    xy, heading = w.initial_conditions(0, n=4000)
+    xy, heading, _ = w.initial_conditions(0, n=4000)
     phi = w.start_rotation
     c, s = np.cos(-phi), np.sin(-phi)
     back = np.stack([xy[..., 0] * c - xy[..., 1] * s, xy[..., 0] * s + xy[..., 1] * c], axis=-1)

@@ -99,7 +99,7 @@ class NullObserver:
 
 
 # Names a run's arrays already use (curve.npz, the runner's record, the observer's files): no series may take them.
-RESERVED = frozenset({"score", "seed", "genomes", "ic_xy", "ic_heading", "heldout_score", "initial_score"})
+RESERVED = frozenset({"score", "seed", "genomes", "ic_xy", "ic_heading", "ic_layout", "heldout_score", "initial_score"})
 RESERVED_PREFIXES = ("behaviour_", "occupancy_")
 
 

@@ -65,12 +65,15 @@ def line(ax, y, x=None, **kw) -> None:
     ax.plot(x, y, **kw)
 
 
-def scene(ax, world: World, xy: np.ndarray, lim: float, lw: float, ms: float, alpha: float | None = None) -> None:
-    """The world's POIs (discs of the observation radius, coloured by coupling) and rover paths xy (E, T+1, N, 2) of
-    E episodes overlaid (each path ends in a dot, in the rover's colour), on a bare square of half-width ``lim``."""
-    for (px, py), c in zip(world.poi_xy, world.coupling, strict=True):
+def scene(ax, world: World, xy: np.ndarray, lim: float, lw: float, ms: float, alpha: float | None = None,
+          layout: np.ndarray | None = None) -> None:
+    """The world's POIs (discs of the observation radius, coloured by coupling; ``World.poi_positions`` of the
+    episode ``layout`` (K,)), what a world plug-in draws (``World.draw``) and rover paths xy (E, T+1, N, 2) of E
+    episodes overlaid (each path ends in a dot, in the rover's colour), on a bare square of half-width ``lim``."""
+    for (px, py), c in zip(world.poi_positions(layout), world.coupling, strict=True):
         colour = poi_hex(c)
         ax.add_patch(Circle((px, py), world.obs_radius, fc=colour, ec=colour, alpha=POI_ALPHA))
+    world.draw(ax, layout)
     for episode in xy:
         for i in range(episode.shape[1]):
             ax.plot(episode[:, i, 0], episode[:, i, 1], color=rover_hex(i), lw=lw, alpha=alpha)

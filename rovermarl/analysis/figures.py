@@ -59,16 +59,17 @@ def _load_update_run(path: Path, update_gen: int | None, notes: list[str]) -> tu
 
 
 def _behaviour_figures(setup: str, group: Sequence[Job], chosen: tuple[Job, RunCurve] | None, update_gen: int | None,
-                       notes: list[str]) -> list[tuple[str, tuple[Figure, dict]]]:
+                       notes: list[str], trust: bool = False) -> list[tuple[str, tuple[Figure, dict]]]:
     """The update and occupancy figures of one setup: from the chosen run, else from the best run that recorded
     the data; a note instead of a figure when there is none."""
     out = []
     for kind, filename in (("update", "behaviour.npz"), ("occupancy", "occupancy.npz")):
         own = chosen is not None and chosen[0].setup == setup and chosen[1].has(filename)
         picked = chosen if own else pick_run(group, filename)
-        world = picked[0].world() if picked else None
+        world = picked[0].world(trust) if picked else None
         if picked is None or world is None:
-            why = "no run recorded" if picked is None else "cannot build the world of"
+            why = ("no run recorded" if picked is None else "cannot build the world of" if trust
+                   else "cannot build (a world plug-in? --trust-config) the world of")
             notes.append(f"{setup}: {why} {filename}; no {kind} figure")
             continue
         try:
@@ -104,13 +105,14 @@ def _fig6(path: Path, jobs: Sequence[Job], xscale: str, notes: list[str]) -> tup
 
 def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float] | None = None,
                formats: Sequence[str] = FORMATS, update_run: Path | None = None, update_gen: int | None = None,
-               log=None, xscale: str = "linear", x: str = "auto") -> dict:
+               log=None, xscale: str = "linear", x: str = "auto", trust: bool = False) -> dict:
     """Draw every figure of the sweep (or job) dir ``path`` into ``out`` (default ``path/figures``).
 
     ``path`` may also be a results dir of :mod:`rovermarl.analysis.results`; it adds the Fig. 6 and C8
     figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included). ``x``:
     the score curves' x-axis, ``generation``, ``evals`` (team evaluations) or ``auto`` (evaluations when a setup's
-    jobs spend different numbers per generation).
+    jobs spend different numbers per generation). ``trust``: build world plug-ins named by the jobs' configs (their
+    modules run code; the end-of-sweep callback trusts its own sweep).
 
     Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
     """
@@ -146,7 +148,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
             emit("soft_vs_strict", setup, fig_soft_vs_strict(setup, pairs, threshold))
         if bandits := [j for j in group if j.bandit]:
             emit("bandit", setup, fig_bandit(setup, bandits))
-        for kind, drawn in _behaviour_figures(setup, group, chosen, update_gen, notes):
+        for kind, drawn in _behaviour_figures(setup, group, chosen, update_gen, notes, trust):
             emit(kind, setup, drawn)
 
     if (path / "fig6.npz").is_file():                                   # exported results: C8 figures

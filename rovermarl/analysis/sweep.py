@@ -154,9 +154,13 @@ class Job:
         value = (_read_json(self.path / "summary.json") or {}).get("median_heldout_score")
         return None if value is None else float(value)
 
-    def world(self):
-        """The job's :class:`~rovermarl.env.World` from its config, or None if it cannot be built."""
-        for build in (lambda: World.from_config(OmegaConf.create(self.config)), lambda: make_world(self.setup)):
+    def world(self, trust: bool = False):
+        """The job's :class:`~rovermarl.env.World` from its config, or None if it cannot be built. A world plug-in's
+        (``env._target_``) only with ``trust``: its module runs code."""
+        if not trust and (self.config.get("env") or {}).get("_target_") not in (None, "rovermarl.env.World"):
+            return None
+        for build in (lambda: World.from_config(OmegaConf.create(self.config), trust),
+                      lambda: make_world(self.setup)):
             try:
                 return build()
             except Exception:  # an odd config only costs the trajectory figures

@@ -1,6 +1,7 @@
-"""Rover world: geometry and initial conditions (``world``), the compiled kernel in stages (``kernel``),
-and the SPEC in plain numpy (``reference``, the tests' oracle)."""
+"""Rover world: geometry and initial conditions (``world``), what a world plug-in overrides (``scenario``), the
+compiled kernel in stages and hooks (``kernel``), and the SPEC in plain numpy (``reference``, the tests' oracle)."""
 
-from rovermarl.env.world import InitialConditions, Rollout, World, make_world
+from rovermarl.env.make import make_world
+from rovermarl.env.world import InitialConditions, Rollout, World
 
 __all__ = ["InitialConditions", "Rollout", "World", "make_world"]

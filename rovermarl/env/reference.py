@@ -111,7 +111,7 @@ def rollout(world, genomes: np.ndarray, ic, record: bool = False):
 
     Returns per-episode returns (E,), or ``(xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,))`` if ``record``.
     """
-    xy, heading = (np.array(a, dtype=np.float64) for a in ic)
+    xy, heading = (np.array(a, dtype=np.float64) for a in ic[:2])
     traj_xy, traj_h = [xy], [heading]
     for _ in range(world.steps):
         xy, heading = move(world, xy, heading, act(world, genomes, observe(world, xy, heading)))

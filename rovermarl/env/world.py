@@ -3,28 +3,45 @@
 The world options of SPEC section 8 (other readings of the paper) are fields of :class:`World` and keys of the
 ``env`` group: ``reward`` (final | any_step | best_step | mean_step), ``speed`` (affine | clip) and ``poi_type``
 (coupling | sign | value). The defaults are the SPEC reading.
+
+:class:`World` is also the base of a world plug-in: a subclass in a module of its own, named by ``env._target_`` in
+its yaml, adds fields (its parameters), may override :meth:`World.check`, :meth:`World.draw_layout`,
+:meth:`World.obs_blocks`, :meth:`World.kernel_extra`, :meth:`World.draw` and :meth:`World.log_static`, and sets
+``hooks`` to its compiled hooks (:mod:`rovermarl.env.kernel.hooks`); the rollout, the environments and the
+recordings follow (``docs/ARCHITECTURE.md``, "Adding a world").
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import NamedTuple
+from functools import cached_property
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl import errors, policy
 from rovermarl.env import kernel
-from rovermarl.resources import CONF_DIR
+from rovermarl.env.kernel.compose import kernel_module
+from rovermarl.env.kernel.hooks import ROVERS, Hooks
+from rovermarl.env.scenario import Scenario
 
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
 _NO_FINAL = np.empty((0, 1, 2))
 
-InitialConditions = tuple[np.ndarray, np.ndarray]  # xy (E, N, 2), heading (E, N)
 DTYPES = ("float64", "float32")   # env.dtype: float32 is close to float64, not bit-identical (README)
 HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
+
+
+class InitialConditions(NamedTuple):
+    """E episodes' starts: xy (E, N, 2), heading (E, N), and layout (E, K): what else a world draws per episode
+    (:meth:`World.draw_layout`; K = 0 for the paper's world). Any (xy, heading) pair is read with an empty layout."""
+
+    xy: np.ndarray
+    heading: np.ndarray
+    layout: np.ndarray
 
 
 class Rollout(NamedTuple):
@@ -35,13 +52,8 @@ class Rollout(NamedTuple):
     returns: np.ndarray
 
 
-def obs_dim(n_pois: int, n_rovers: int) -> int:
-    """A rover's observation size: 3 sensor numbers per POI (distance, angle, type) and 2 per rover."""
-    return 3 * n_pois + 2 * n_rovers
-
-
 @dataclass(frozen=True, eq=False)
-class World:
+class World(Scenario):
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
     ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
@@ -69,6 +81,7 @@ class World:
     hidden: int = 16
     name: str = ""
     poi_xy: np.ndarray = field(init=False, repr=False)
+    hooks: ClassVar[Hooks] = ROVERS          # the compiled hooks of the world (rovermarl.env.kernel.hooks)
 
     def __post_init__(self):
         n = errors.integer("env.n_rovers", self.n_rovers, 1)
@@ -96,6 +109,7 @@ class World:
         errors.choice("env.speed", self.speed, kernel.SPEEDS)
         errors.choice("env.poi_type", self.poi_type, kernel.POI_TYPES)
         errors.choice("env.dtype", self.dtype, DTYPES)
+        self.check()
         object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))
         object.__setattr__(self, "value", tuple(float(v) for v in self.value))
         angle = 2 * np.pi * np.arange(self.n_pois) / self.n_pois
@@ -110,8 +124,19 @@ class World:
         object.__setattr__(self, "_float", f)
         object.__setattr__(self, "kernel", kernel.KernelWorld(    # the world as the kernel reads it, passed whole
             self.poi_xy.astype(f), self._type.astype(f), self._coupling, self._value, self.steps, self.hidden,
-            f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
-            kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward)))
+            self.obs_dim, f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
+            kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward), np.empty((0, self.layout_dim)),
+            self.kernel_extra()))
+
+    @cached_property
+    def compiled(self):
+        """The module of the world's compiled functions (``rollout``, ``observe``, ``step``, ``returns_of``):
+        :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
+        return kernel_module(self.hooks)
+
+    def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:
+        """:attr:`kernel` with the initial conditions' ``layout`` (E, K)."""
+        return self.kernel._replace(layout=layout)
 
     @property
     def poi_sensor_type(self) -> np.ndarray:
@@ -121,10 +146,14 @@ class World:
 
     # ---- construction -------------------------------------------------------------------------
     @classmethod
-    def from_config(cls, cfg) -> World:
-        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections."""
+    def from_config(cls, cfg, trust: bool = True) -> World:
+        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections: the class ``env._target_``
+        names (this one by default). A read path of results passes ``trust=False``: then only rovermarl's own world
+        is built (a plug-in's module would run code: ``--trust-config``). ``cfg`` may be a plain dict."""
+        cfg = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
         setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
-        env = OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env
+        env = dict(OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env)
+        cls = world_class(env.pop("_target_", None), trust)
         known = {f.name for f in fields(cls) if f.init}
         for key in env:
             if key not in known:
@@ -143,8 +172,9 @@ class World:
 
     @property
     def obs_dim(self) -> int:
-        """3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers): :func:`obs_dim`."""
-        return obs_dim(self.n_pois, self.n_rovers)
+        """The sum of :meth:`obs_blocks`: 3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers) in the
+        paper's world."""
+        return sum(low.size for _, low, _ in self.obs_blocks())
 
     @property
     def n_params(self) -> int:
@@ -198,7 +228,8 @@ class World:
         sector = 2 * np.pi / self.n_rovers
         low = sector * np.arange(self.n_rovers)
         heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))
-        return np.ascontiguousarray(xy), np.ascontiguousarray(heading)
+        layout = np.ascontiguousarray(self.draw_layout(rng, n), dtype=np.float64)     # after the starts
+        return InitialConditions(np.ascontiguousarray(xy), np.ascontiguousarray(heading), layout)
 
     def run_ic(self, seed: int, generation: int = 0) -> InitialConditions:
         """The initial conditions run ``seed`` is scored on: stream 0 of ``SeedSequence(seed)`` (SPEC section 5).
@@ -217,14 +248,20 @@ class World:
         return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=(HELDOUT_STREAM,)), n=n)
 
     # ---- sensing and reward -------------------------------------------------------------------
-    def observe(self, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
-        """Observations: xy (..., N, 2), heading (..., N) -> (..., N, obs_dim) (libm rounding: ``kernel.sense_libm``,
-        float64 under any ``env.dtype``; the rollout's ``kernel.sense`` reads the same within a few ulp)."""
-        xy, heading = self._batch(xy, heading)
+    def observe(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
+        """Observations: xy (..., N, 2), heading (..., N) (and a plug-in's layout (..., K)) -> (..., N, obs_dim),
+        float64. The paper's world reads them with libm's rounding (``kernel.sense_libm``; the rollout's sensing reads
+        the same within a few ulp); a plug-in's through its ``sense`` hook."""
+        xy, heading, layout = self._batch(xy, heading, layout)
         out = np.empty(heading.shape + (self.obs_dim,))
-        kernel.sense_libm(xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers),
-                          self.poi_xy, self._type, float(self.sensor_range),
-                          out.reshape(-1, self.n_rovers, self.obs_dim))
+        flat = xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers)
+        if self.hooks == ROVERS:
+            kernel.sense_libm(*flat, self.poi_xy, self._type, float(self.sensor_range),
+                              out.reshape(-1, self.n_rovers, self.obs_dim))
+        else:
+            k = self.kernel._replace(poi_xy=self.poi_xy, poi_type=self._type, sensor_range=float(self.sensor_range),
+                                     layout=layout.reshape(flat[1].shape[0], self.layout_dim))
+            self.compiled.observe(*flat, k, out.reshape(-1, self.n_rovers, self.obs_dim))
         return out
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:
@@ -245,66 +282,62 @@ class World:
                       float(self.obs_radius), out.reshape(-1))
         return out
 
-    def episode_return(self, xy: np.ndarray) -> np.ndarray:
-        """Episode returns under this world's ``reward`` reading from trajectories xy (..., T+1, M, 2) (index 0 the
-        start, which no reading scores; ``M`` rovers as in :meth:`team_return`) -> (...,); for the team's own
-        trajectories the same numbers as :meth:`returns`."""
+    def episode_return(self, xy: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
+        """Episode returns under this world's reward hooks (``env.reward`` here) from trajectories xy (..., T+1, M, 2)
+        (index 0 the start, which no reading scores; ``M`` rovers as in :meth:`team_return`; a plug-in's layout
+        (..., K)) -> (...,); for the team's own trajectories the same numbers as :meth:`returns`."""
         xy = np.asarray(xy, dtype=np.float64)
         if xy.ndim < 3 or xy.shape[-3] != self.steps + 1 or xy.shape[-1] != 2:
             raise ValueError(f"xy must have shape (..., {self.steps + 1}, M, 2), got {xy.shape}")
-        if self.reward == "final":
-            return self.team_return(xy[..., -1, :, :])
         flat = np.ascontiguousarray(xy.reshape(-1, *xy.shape[-3:]))
+        lay = np.zeros(xy.shape[:-3] + (self.layout_dim,)) if layout is None else np.asarray(layout, np.float64)
         out = np.empty(flat.shape[0])
-        p, e = self.n_pois, flat.shape[0]
-        mode = kernel.REWARDS.index(self.reward)
-        count, step, peak, acc = kernel.start(mode, e, p)
-        for t in range(1, self.steps + 1):
-            kernel.fold(mode, np.ascontiguousarray(flat[:, t]), self.poi_xy, self._coupling, self._value,
-                        float(self.obs_radius), count, step, peak, acc)
-        kernel.settle(mode, self.steps, self._coupling, self._value, peak, acc, out)
+        k = self.kernel_for(np.ascontiguousarray(lay.reshape(flat.shape[0], self.layout_dim)))
+        self.compiled.returns_of(flat, k, out)              # as the rollout's reward reads them
         return out.reshape(xy.shape[:-3])
 
     # ---- rollouts -----------------------------------------------------------------------------
-    def rollout(self, genomes: np.ndarray, ic: InitialConditions) -> Rollout:
-        """Full trajectories of a team: genomes (N, P), ic (xy (E, N, 2), heading (E, N))."""
-        genomes, (xy0, h0) = self._team(genomes), self._batch(*ic)
+    def rollout(self, genomes: np.ndarray, ic) -> Rollout:
+        """Full trajectories of a team: genomes (N, P), ic (:class:`InitialConditions`, or xy (E, N, 2), heading
+        (E, N))."""
+        genomes, (xy0, h0, layout) = self._team(genomes), self._batch(*ic)
         e = h0.shape[0]
         traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
                        np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e))
-        self._run(genomes, xy0, h0, traj.returns, traj.xy, traj.heading)
+        self._run(genomes, xy0, h0, layout, traj.returns, traj.xy, traj.heading)
         return traj
 
-    def returns(self, genomes: np.ndarray, ic: InitialConditions, final_xy: np.ndarray | None = None) -> np.ndarray:
+    def returns(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> np.ndarray:
         """Per-episode team returns (E,) of a team genomes (N, P) from ic.
 
         If given, ``final_xy`` (E, N, 2) receives the rovers' final positions (at no extra cost).
         """
-        genomes, (xy0, h0) = self._team(genomes), self._batch(*ic)
+        genomes, (xy0, h0, layout) = self._team(genomes), self._batch(*ic)
         out = np.empty(h0.shape[0])
         if final_xy is not None and final_xy.shape != xy0.shape:
             raise ValueError(f"final_xy must have shape {xy0.shape}, got {final_xy.shape}")
-        self._run(genomes, xy0, h0, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
+        self._run(genomes, xy0, h0, layout, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
         return out
 
-    def evaluate(self, genomes: np.ndarray, ic: InitialConditions, final_xy: np.ndarray | None = None) -> float:
+    def evaluate(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> float:
         """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
         return score(self.returns(genomes, ic, final_xy))
 
-    def kernel_args(self, ic: InitialConditions) -> tuple:
-        """The arguments of :func:`kernel.rollout <rovermarl.env.kernel.rollout>` after the genomes and before its
-        outputs: the initial conditions ``ic`` (xy (E, N, 2), heading (E, N)), checked and contiguous, then
-        :attr:`kernel` (the world's :class:`~rovermarl.env.kernel.KernelWorld`), e.g. for a compiled loop that
-        evaluates teams itself. Floats are in ``env.dtype`` (the genomes must be too)."""
-        return (*self._in_dtype(*self._batch(*ic)), self.kernel)
+    def kernel_args(self, ic) -> tuple:
+        """The arguments of the world's ``compiled.rollout`` after the genomes and before its outputs: the initial
+        conditions' xy (E, N, 2) and heading (E, N), checked and contiguous, then the world's
+        :class:`~rovermarl.env.kernel.KernelWorld` with their layout, e.g. for a compiled loop that evaluates teams
+        itself. Floats are in ``env.dtype`` (the genomes must be too)."""
+        xy0, h0, layout = self._batch(*ic)
+        return (*self._in_dtype(xy0, h0), self.kernel_for(layout))
 
     def _in_dtype(self, *arrays):
         """Checked float64 arrays in ``env.dtype``, the kernel's precision (no copy for float64)."""
         return tuple(a.astype(self._float, copy=False) for a in arrays)
 
-    def _run(self, genomes, xy0, h0, returns, traj_xy, traj_heading, final_xy=None):
-        kernel.rollout(*self._in_dtype(genomes, xy0, h0), self.kernel, returns, traj_xy, traj_heading,
-                       _NO_FINAL if final_xy is None else final_xy)
+    def _run(self, genomes, xy0, h0, layout, returns, traj_xy, traj_heading, final_xy=None):
+        self.compiled.rollout(*self._in_dtype(genomes, xy0, h0), self.kernel_for(layout), returns, traj_xy,
+                              traj_heading, _NO_FINAL if final_xy is None else final_xy)
 
     def _team(self, genomes):
         genomes = np.ascontiguousarray(genomes, dtype=np.float64)
@@ -312,13 +345,22 @@ class World:
             raise ValueError(f"genomes must have shape ({self.n_rovers}, {self.n_params}), got {genomes.shape}")
         return genomes
 
-    def _batch(self, xy, heading):
+    def _batch(self, xy, heading, layout=None):
+        """Checked, contiguous float64 (xy (..., N, 2), heading (..., N), layout (..., K)); no layout: K = 0 only."""
         xy = np.ascontiguousarray(xy, dtype=np.float64)
         heading = np.ascontiguousarray(heading, dtype=np.float64)
         if xy.shape[-2:] != (self.n_rovers, 2) or heading.shape != xy.shape[:-1]:
             raise ValueError(f"expected xy (..., {self.n_rovers}, 2) and heading (..., {self.n_rovers}), "
                              f"got {xy.shape} and {heading.shape}")
-        return xy, heading
+        if layout is None:
+            if self.layout_dim:
+                raise ValueError(f"{type(self).__name__}'s initial conditions carry a layout (..., "
+                                 f"{self.layout_dim}): pass all of World.initial_conditions, not only xy and heading")
+            layout = np.empty(heading.shape[:-1] + (0,))
+        layout = np.ascontiguousarray(layout, dtype=np.float64)
+        if layout.shape != heading.shape[:-1] + (self.layout_dim,):
+            raise ValueError(f"expected layout {heading.shape[:-1] + (self.layout_dim,)}, got {layout.shape}")
+        return xy, heading, layout
 
 
 def score(returns: np.ndarray) -> float:
@@ -327,22 +369,19 @@ def score(returns: np.ndarray) -> float:
     return float(kernel.score(returns))
 
 
-def make_world(setup: str = "solo", **overrides) -> World:
-    """A :class:`World` with the defaults of ``conf/`` (``setup/<setup>.yaml``, ``env/rovers.yaml``,
-    ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)`` or the world
-    options of SPEC section 8, ``make_world("duo", reward="any_step", speed="clip", poi_type="sign")``."""
-    path = CONF_DIR / "setup" / f"{setup}.yaml"
-    if not path.exists():
-        options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))
-        raise errors.ConfigError("setup", setup, "unknown setup; allowed: " + ", ".join(options))
-    setup_file = OmegaConf.load(path)
-    env = OmegaConf.load(CONF_DIR / "env" / "rovers.yaml")
-    if "setup" in setup_file:                                  # `# @package _global_`: it also sets env keys
-        env = OmegaConf.merge(env, setup_file.get("env") or {})
-        setup_file = setup_file.setup
-    policy = OmegaConf.load(CONF_DIR / "policy" / "mlp.yaml")
-    cfg = OmegaConf.create({"setup": setup_file, "env": env, "policy": policy})
-    for key, val in overrides.items():
-        section = "setup" if key in ("coupling", "value", "name") else "policy" if key == "hidden" else "env"
-        cfg[section][key] = val
-    return World.from_config(cfg)
+def world_class(target: str | None, trust: bool = True) -> type[World]:
+    """The class ``env._target_`` names: :class:`World` for None or its own path; a plug-in's only with ``trust``
+    (its module is imported: it runs code)."""
+    if target is None or target in (f"{__name__}.World", "rovermarl.env.World"):
+        return World
+    if not trust:
+        raise errors.ConfigError("env._target_", target, "a world plug-in; a results directory may not run code: "
+                                 "pass --trust-config if you trust it")
+    from hydra.utils import get_class
+    try:
+        cls = get_class(target)
+    except Exception as e:
+        raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: {e})") from None
+    if not (isinstance(cls, type) and issubclass(cls, World)):
+        raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.env.World")
+    return cls

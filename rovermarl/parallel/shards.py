@@ -18,19 +18,18 @@ from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
 @ray.remote(num_cpus=1)
 class ShardActor:
-    """Rolls out one slice of a run's initial conditions: xy (e, N, 2), heading (e, N)."""
+    """Rolls out one slice of a run's initial conditions: xy (e, N, 2), heading (e, N), layout (e, K)."""
 
     def __init__(self, cfg: dict):
         self.world = World.from_config(OmegaConf.create(cfg))
         self.ic = None
 
-    def set_ic(self, xy: np.ndarray, heading: np.ndarray) -> None:
-        self.ic = (xy, heading)
+    def set_ic(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray) -> None:
+        self.ic = (xy, heading, layout)
 
     def draw(self, seed: int, generation: int, lo: int, hi: int) -> None:
         """Episodes ``lo:hi`` of run ``seed``'s initial conditions of ``generation`` (``evaluation.fresh_ic``)."""
-        xy, heading = self.world.run_ic(seed, generation)
-        self.ic = (xy[lo:hi], heading[lo:hi])
+        self.ic = tuple(a[lo:hi] for a in self.world.run_ic(seed, generation))
 
     def returns(self, genomes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """genomes (N, P) -> per-episode returns (e,), final positions (e, N, 2)."""
@@ -51,8 +50,8 @@ class ShardedEvaluation:
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
         bounds = np.linspace(0, ic[1].shape[0], len(actors) + 1).round().astype(int)
         self.slices = list(zip(bounds[:-1], bounds[1:], strict=True))
-        ray.get([a.set_ic.remote(ic[0][lo:hi], ic[1][lo:hi]) for a, (lo, hi) in zip(actors, self.slices,
-                                                                                     strict=True)])
+        ray.get([a.set_ic.remote(*(part[lo:hi] for part in ic)) for a, (lo, hi) in zip(actors, self.slices,
+                                                                                       strict=True)])
 
     def draw(self, generation: int) -> None:
         ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, (lo, hi) in zip(self.actors, self.slices,

@@ -39,7 +39,7 @@ class RunRecord:
         self.score = np.full(generations + 1, np.nan)
         self.history: dict[str, np.ndarray] = {s.name: s.empty(generations) for s in series}
         self.events: dict[str, list[np.ndarray]] = {}                 # "<file>_<key>" -> parts
-        self.extra: dict[str, np.ndarray] = {}                        # ic_xy, ic_heading, genomes, heldout_score
+        self.extra: dict[str, np.ndarray] = {}          # ic_xy, ic_heading, [ic_layout], genomes, heldout_score
         self.evaluations = 0                                          # team evaluations in this process's chunks
 
     @property
@@ -59,7 +59,7 @@ class RunRecord:
         for file, arrays in chunk["events"].items():
             for key, values in arrays.items():
                 self.events.setdefault(f"{file}_{key}", []).append(values)
-        for key in ("ic_xy", "ic_heading", "genomes", "heldout_score"):
+        for key in ("ic_xy", "ic_heading", "ic_layout", "genomes", "heldout_score"):
             if key in chunk:
                 self.extra[key] = chunk[key]
         self.state, self.generation = chunk["state"], stop

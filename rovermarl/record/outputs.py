@@ -6,7 +6,7 @@ Job dir layout::
     runs/seed_XXX/curve.npz               score (G+1), then the algorithm's declared series (G, ...); for cc11es
                                           k, accepted, switched int16, child_score, probs (G, K)
     runs/seed_XXX/genomes.npy             final team genomes (N, P)
-    runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N)
+    runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N), [layout (E, K) of a world plug-in]
     runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
     runs/seed_XXX/occupancy.npz           generation (M,), count (M, E, P) int8
     runs/seed_XXX/run.rrd                 Rerun recording (see rovermarl.record.rerun_log)
@@ -100,7 +100,10 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     _savez(out / "curve.npz", {"score": result["score"], **{s.name: result[s.name] for s in series}})
     with atomic_open(out / "genomes.npy") as f:
         np.save(f, result["genomes"])
-    _savez(out / "initial_conditions.npz", {"xy": result["ic_xy"], "heading": result["ic_heading"]})
+    ic = {"xy": result["ic_xy"], "heading": result["ic_heading"]}
+    if "ic_layout" in result:                                       # a world plug-in's layout (E, K), K > 0
+        ic["layout"] = result["ic_layout"]
+    _savez(out / "initial_conditions.npz", ic)
     for file in EVENT_FILES:             # the observer's: key "<file>_<name>" -> <file>.npz[name]
         prefix = file + "_"
         _savez(out / f"{file}.npz", {k[len(prefix):]: v for k, v in result.items() if k.startswith(prefix)})

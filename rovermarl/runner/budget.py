@@ -16,7 +16,7 @@ import os
 from dataclasses import dataclass
 
 from rovermarl import errors
-from rovermarl.env.world import obs_dim
+from rovermarl.env.world import World
 from rovermarl.policy import n_params
 from rovermarl.resources import packaged
 
@@ -62,7 +62,7 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
-    d = obs_dim(p, n)
+    d = World.from_config(plain).obs_dim                             # the world's observation blocks
     genome = n_params(d, h)
     seeds = int(plain["seeds"])
     memory = {

@@ -211,6 +211,8 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: Evalua
              "evaluations": run.evaluate.calls}
     if state is None:
         chunk.update(initial_score=run.initial_score, ic_xy=run.ic[0], ic_heading=run.ic[1])
+        if run.ic[2].shape[-1]:                                     # a world plug-in's layout
+            chunk.update(ic_layout=run.ic[2])
     if run.done:
         chunk.update(genomes=run.team, heldout_score=run.heldout_score())
     return chunk

@@ -1,5 +1,10 @@
-"""The fused team rollout (numba): the hot path of every evaluation, built from the stage loops of
-:mod:`rovermarl.env.kernel.stages` on their flat layout, with all buffers allocated once per call."""
+"""The fused team rollout (numba): the hot path of every evaluation, built from a world's hooks
+(:mod:`rovermarl.env.kernel.hooks`) and the MLP stage on the flat layout of :mod:`rovermarl.env.kernel.stages`, with
+all buffers allocated once per call; and the batch-first step functions an environment steps with.
+
+This module is compiled with the rover world's hooks. For a world plug-in, :mod:`rovermarl.env.kernel.compose`
+compiles a copy of it with the plug-in's hooks in place of the line marked ``# hooks``: one source, every world.
+"""
 
 from __future__ import annotations
 
@@ -7,11 +12,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rovermarl.env.kernel.checks import input_rows, mlp_finite
+from rovermarl.env.kernel.hooks import finite, move, rows, score_end, score_start, score_step, sense  # hooks
 from rovermarl.env.kernel.math import FAST, sincos_all
-from rovermarl.env.kernel.reward import fold, reward, settle, start
-from rovermarl.env.kernel.rules import FINAL
-from rovermarl.env.kernel.stages import act_flat, from_flat, move_flat, sense_flat, to_flat
+from rovermarl.env.kernel.stages import act_flat, from_flat, to_flat
 from rovermarl.jit import njit
 
 
@@ -19,9 +22,11 @@ class KernelWorld(NamedTuple):
     """The world as the kernel reads it, owned by :class:`~rovermarl.env.World` (``World.kernel``) and passed whole.
 
     poi_xy (P, 2) and poi_type (P,) (the sensors' third number) in the kernel's precision (``env.dtype``); coupling
-    (P,) int64; value (P,) float64; ``steps`` T and ``hidden`` H; sensor_range, obs_radius, v_max and w_max (radians)
-    in the kernel's precision; ``speed_mode`` and ``reward_mode`` the indices of ``env.speed`` and ``env.reward`` in
-    :mod:`~rovermarl.env.kernel.rules`.
+    (P,) int64; value (P,) float64; ``steps`` T, ``hidden`` H and ``obs_dim`` D; sensor_range, obs_radius, v_max and
+    w_max (radians) in the kernel's precision; ``speed_mode`` and ``reward_mode`` the indices of ``env.speed`` and
+    ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`; ``layout`` (E, K) float64, what the initial conditions
+    draw per episode besides the rovers' starts (K = 0 for the paper's world; ``World.kernel_for`` sets it per call);
+    ``extra``, a tuple of a world plug-in's own arrays and numbers (``World.kernel_extra``; empty here).
     """
 
     poi_xy: np.ndarray
@@ -30,12 +35,15 @@ class KernelWorld(NamedTuple):
     value: np.ndarray
     steps: int
     hidden: int
+    obs_dim: int
     sensor_range: float
     obs_radius: float
     v_max: float
     w_max: float
     speed_mode: int
     reward_mode: int
+    layout: np.ndarray
+    extra: tuple
 
 
 @njit(**FAST)
@@ -49,28 +57,18 @@ def rollout(genomes, xy0, heading0, w, returns, traj_xy, traj_heading, final_xy)
     If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
     arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
     unless its first axis is zero-sized.
-    Each step: all rovers sense, all act, then each turns and moves (``sense_flat``, ``act_flat``, ``move_flat``).
-    After the last step, :func:`~rovermarl.env.kernel.reward.reward` scores the final positions (``env.reward=final``);
-    a per-step reading folds the positions after every step instead (``fold``, then ``settle``).
+    Each step: all rovers sense, all act, then each turns and moves (the hooks ``sense``, ``act_flat``, ``move``),
+    then ``score_step``; after the last step ``score_end`` gives the returns.
     """
-    _rollout(genomes, xy0, heading0, w.poi_xy, w.poi_type, w.coupling, w.value, w.steps, w.hidden, w.sensor_range,
-             w.obs_radius, w.v_max, w.w_max, w.speed_mode, w.reward_mode, returns, traj_xy, traj_heading, final_xy)
-
-
-@njit(**FAST)
-def _rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, hidden, sensor_range, obs_radius,
-             v_max, w_max, speed_mode, reward_mode, returns, traj_xy, traj_heading, final_xy):
-    """:func:`rollout` on the record's fields one by one: compiled as its own function, its arguments are plain
-    arrays and numbers (measured: the record unpacked inside the loop's function cost 4-8% of the kernel)."""
     n_ep, n = heading0.shape
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
-    d = 3 * poi_xy.shape[0] + 2 * n
+    d, hidden = w.obs_dim, w.hidden
     state = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     obs = np.empty(d * ne, dtype=xy0.dtype)
     hid = np.empty((hidden + 2) * n_ep, dtype=xy0.dtype)
-    rows, cand = np.empty(d, dtype=np.int64), input_rows(n, poi_type)
+    scratch, cand = np.empty(d, dtype=np.int64), rows(n, w)
     to_flat(xy0[:, :, 0], x)
     to_flat(xy0[:, :, 1], y)
     to_flat(heading0, heading)
@@ -78,28 +76,75 @@ def _rollout(genomes, xy0, heading0, poi_xy, poi_type, coupling, value, steps, h
         traj_xy[:, 0] = xy0
         traj_heading[:, 0] = heading0
     sincos_all(heading, sin_h, cos_h)
-    finite = mlp_finite(genomes, poi_type, sensor_range)   # with each step's in_range: the MLP's sums are finite
+    sums_finite = finite(genomes, w)                   # with each step's ranged sensing: the MLP's sums are finite
     xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
-    per_step = reward_mode != FINAL
-    p = poi_xy.shape[0] if per_step else 0
-    count, step, peak, acc = start(reward_mode, n_ep, p)
-    for t in range(steps):
-        ranged = sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
-        act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite and ranged)
-        move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
+    acc = score_start(w, n_ep)
+    for t in range(w.steps):
+        ranged = sense(x, y, sin_h, cos_h, n, w, obs)
+        act_flat(genomes, obs, cand, n_ep, hidden, hid, scratch, a0, a1, sums_finite and ranged)
+        move(x, y, heading, sin_h, cos_h, a0, a1, w)
         if record:
             from_flat(x, traj_xy[:, t + 1, :, 0])
             from_flat(y, traj_xy[:, t + 1, :, 1])
             from_flat(heading, traj_heading[:, t + 1])
-        if per_step:                                  # env.reward read at every step (SPEC section 8)
-            from_flat(x, xy[:, :, 0])
-            from_flat(y, xy[:, :, 1])
-            fold(reward_mode, xy, poi_xy, coupling, value, obs_radius, count, step, peak, acc)
+        score_step(w, x, y, xy, acc)
     from_flat(x, xy[:, :, 0])
     from_flat(y, xy[:, :, 1])
     if final_xy.shape[0] == n_ep:
         final_xy[:] = xy
-    if per_step:
-        settle(reward_mode, steps, coupling, value, peak, acc, returns)
-    else:                                             # SPEC section 1: the positions after the last step
-        reward(xy, poi_xy, coupling, value, obs_radius, returns)
+    score_end(w, xy, acc, returns)
+
+
+# ---- batch-first steps: an environment's (PettingZoo, vectorised), the rollout's hooks one call at a time ----------
+
+@njit(**FAST)
+def observe(xy, heading, w, out):
+    """Observations of the world ``w``'s hook ``sense``: xy (E, N, 2), heading (E, N) -> out (E, N, D), in the
+    precision of xy."""
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    state = np.empty((5, ne), dtype=xy.dtype)
+    x, y, h, sin_h, cos_h = state[0], state[1], state[2], state[3], state[4]
+    to_flat(xy[:, :, 0], x)
+    to_flat(xy[:, :, 1], y)
+    to_flat(heading, h)
+    sincos_all(h, sin_h, cos_h)
+    obs = np.empty(w.obs_dim * ne, dtype=xy.dtype)
+    sense(x, y, sin_h, cos_h, n, w, obs)
+    for k in range(w.obs_dim):
+        from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
+
+
+@njit(**FAST)
+def step(xy, heading, actions, w):
+    """One step of the hook ``move``, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2) (a0, a1 in [-1, 1])."""
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    state = np.empty((7, ne), dtype=xy.dtype)
+    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    to_flat(xy[:, :, 0], x)
+    to_flat(xy[:, :, 1], y)
+    to_flat(heading, h)
+    to_flat(actions[:, :, 0], a0)
+    to_flat(actions[:, :, 1], a1)
+    sincos_all(h, sin_h, cos_h)
+    move(x, y, h, sin_h, cos_h, a0, a1, w)
+    from_flat(x, xy[:, :, 0])
+    from_flat(y, xy[:, :, 1])
+    from_flat(h, heading)
+
+
+@njit(cache=True)
+def returns_of(xy, w, out):
+    """Episode returns from trajectories: xy (E, T+1, N, 2) float64 (index 0 the start, which no reading scores)
+    -> out (E,), through the hooks ``score_start``, ``score_step`` (steps 1..T) and ``score_end`` (step T)."""
+    n_ep, n = xy.shape[0], xy.shape[2]
+    acc = score_start(w, n_ep)
+    flat = np.empty((2, n * n_ep))
+    scratch = np.empty((n_ep, n, 2))
+    for t in range(1, xy.shape[1]):
+        to_flat(xy[:, t, :, 0], flat[0])
+        to_flat(xy[:, t, :, 1], flat[1])
+        score_step(w, flat[0], flat[1], scratch, acc)
+    final = np.ascontiguousarray(xy[:, xy.shape[1] - 1])
+    score_end(w, final, acc, out)

@@ -1,0 +1,93 @@
+"""The paper's rover world as kernel hooks: what :mod:`~rovermarl.env.kernel.fused` calls each step (numba).
+
+A world is its hooks (``World.hooks``, a :class:`Hooks`). These are the rover world's (SPEC sections 1-3, 8), built
+on its stages and reward; a world plug-in passes its own functions with the same signatures (``docs/ARCHITECTURE.md``,
+"Adding a world"), and :mod:`~rovermarl.env.kernel.compose` compiles the rollout around them. The flat layout is
+:mod:`~rovermarl.env.kernel.stages`'s: x, y, heading, sin_h, cos_h, a0, a1 (N*E,) rover-major (pair ``q = i*E + e``),
+obs (D*N*E,) feature-major; ``w`` is the world's :class:`~rovermarl.env.kernel.fused.KernelWorld`.
+
+- ``sense(x, y, sin_h, cos_h, n, w, obs) -> bool``: fill obs; True when the sensing took the ranged path (then,
+  with ``finite``, the MLP leaves out the tanh's NaN case; return False if unsure);
+- ``move(x, y, heading, sin_h, cos_h, a0, a1, w)``: one step of motion in place (sin_h, cos_h follow heading);
+- ``score_start(w, n_ep) -> acc``: the reward's state before the first step (any tuple of arrays);
+- ``score_step(w, x, y, xy, acc)``: after every step (xy (E, N, 2) float64 scratch; a no-op for a final reward);
+- ``score_end(w, xy, acc, returns)``: the returns (E,) from the final positions xy (E, N, 2) float64 and acc;
+- ``rows(n, w) -> (N, D) int64``: each rover's input rows that may be nonzero, increasing, then -1
+  (``checks.input_rows``; every row ``0..D-1`` when unsure);
+- ``finite(genomes, w) -> bool``: every sum of the MLP is finite on ranged steps (False when unsure).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+from rovermarl.env.kernel.checks import input_rows, mlp_finite
+from rovermarl.env.kernel.math import FAST
+from rovermarl.env.kernel.reward import fold, reward, settle, start
+from rovermarl.env.kernel.rules import FINAL
+from rovermarl.env.kernel.stages import from_flat, move_flat, sense_flat
+from rovermarl.jit import njit
+
+
+class Hooks(NamedTuple):
+    """A world's compiled hooks (numba functions with the signatures above)."""
+
+    sense: object
+    move: object
+    score_start: object
+    score_step: object
+    score_end: object
+    rows: object
+    finite: object
+
+
+@njit(inline="always", **FAST)
+def sense(x, y, sin_h, cos_h, n, w, obs):
+    """POIs then rovers (``stages.sense_flat``): D = 3P + 2N rows."""
+    return sense_flat(x, y, sin_h, cos_h, n, w.poi_xy, w.poi_type, w.sensor_range, obs)
+
+
+@njit(inline="always", **FAST)
+def move(x, y, heading, sin_h, cos_h, a0, a1, w):
+    """Turn, then move (``stages.move_flat``, ``env.speed``)."""
+    move_flat(x, y, heading, sin_h, cos_h, a0, a1, w.v_max, w.w_max, w.speed_mode)
+
+
+@njit(inline="always", cache=True)
+def score_start(w, n_ep):
+    """``reward.start`` of ``env.reward`` (no per-POI state under ``final``)."""
+    return start(w.reward_mode, n_ep, w.poi_xy.shape[0] if w.reward_mode != FINAL else 0)
+
+
+@njit(inline="always", cache=True)
+def score_step(w, x, y, xy, acc):
+    """A per-step reading folds every step's positions (``reward.fold``); ``final`` waits for the last."""
+    if w.reward_mode != FINAL:
+        from_flat(x, xy[:, :, 0])
+        from_flat(y, xy[:, :, 1])
+        count, step, peak, total = acc
+        fold(w.reward_mode, xy, w.poi_xy, w.coupling, w.value, w.obs_radius, count, step, peak, total)
+
+
+@njit(inline="always", cache=True)
+def score_end(w, xy, acc, returns):
+    """``final``: the positions after the last step (SPEC section 1, ``reward.reward``); else ``reward.settle``."""
+    if w.reward_mode != FINAL:
+        settle(w.reward_mode, w.steps, w.coupling, w.value, acc[2], acc[3], returns)
+    else:
+        reward(xy, w.poi_xy, w.coupling, w.value, w.obs_radius, returns)
+
+
+@njit(inline="always", cache=True)
+def rows(n, w):
+    """Leaves out the type rows of POIs of type 0 and each rover's own slot (``checks.input_rows``)."""
+    return input_rows(n, w.poi_type)
+
+
+@njit(inline="always", **FAST)
+def finite(genomes, w):
+    """``checks.mlp_finite``."""
+    return mlp_finite(genomes, w.poi_type, w.sensor_range)
+
+
+ROVERS = Hooks(sense, move, score_start, score_step, score_end, rows, finite)

@@ -1,0 +1,30 @@
+"""A world with the packaged defaults, by setup name: :func:`make_world` (library use, tests, examples)."""
+
+from __future__ import annotations
+
+from omegaconf import OmegaConf
+
+from rovermarl import errors
+from rovermarl.env.world import World
+from rovermarl.resources import CONF_DIR
+
+
+def make_world(setup: str = "solo", **overrides) -> World:
+    """A :class:`World` with the defaults of ``conf/`` (``setup/<setup>.yaml``, ``env/rovers.yaml``,
+    ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)`` or the world
+    options of SPEC section 8, ``make_world("duo", reward="any_step", speed="clip", poi_type="sign")``."""
+    path = CONF_DIR / "setup" / f"{setup}.yaml"
+    if not path.exists():
+        options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))
+        raise errors.ConfigError("setup", setup, "unknown setup; allowed: " + ", ".join(options))
+    setup_file = OmegaConf.load(path)
+    env = OmegaConf.load(CONF_DIR / "env" / "rovers.yaml")
+    if "setup" in setup_file:                                  # `# @package _global_`: it also sets env keys
+        env = OmegaConf.merge(env, setup_file.get("env") or {})
+        setup_file = setup_file.setup
+    policy = OmegaConf.load(CONF_DIR / "policy" / "mlp.yaml")
+    cfg = OmegaConf.create({"setup": setup_file, "env": env, "policy": policy})
+    for key, val in overrides.items():
+        section = "setup" if key in ("coupling", "value", "name") else "policy" if key == "hidden" else "env"
+        cfg[section][key] = val
+    return World.from_config(cfg)
