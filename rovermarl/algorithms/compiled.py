@@ -31,10 +31,13 @@ _NO_POI, _NO_PROBS = np.empty((0, 1), dtype=np.int16), np.empty((0, 1))
 def supports(algo, evaluate, observer) -> bool:
     """Whether the compiled loop runs CC11ES ``algo`` with this evaluation and observer: exactly the common
     operators (subclasses may change any rule, so they take the Python loop), a local evaluation on fixed initial
-    conditions (``evaluate.kernel_inputs``) and an observer that says what it measures (``observer.switch_inputs``)."""
+    conditions (``evaluate.kernel_inputs``) in the paper's world (a world plug-in has its own compiled rollout, which
+    this loop does not call: it takes the Python loop) and an observer that says what it measures
+    (``observer.switch_inputs``)."""
     return (type(algo.selector) in (FixedK, EXP3) and type(algo.mutate) is MixedMutation
             and type(algo.accept) is Selection and type(algo.composition) in (HeterogeneousTeam, HomogeneousTeam)
             and not getattr(evaluate, "fresh", False) and callable(getattr(evaluate, "kernel_inputs", None))
+            and evaluate.kernel_inputs()[0].compiled.rollout is rollout      # the paper's world (a plug-in's: Python)
             and callable(getattr(observer, "switch_inputs", None)))
 
 

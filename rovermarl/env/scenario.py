@@ -16,7 +16,9 @@ class Scenario:
     """The plug-in methods of a world, with the paper's world's behaviour. ``self`` is a
     :class:`~rovermarl.env.World` (its fields ``n_rovers``, ``poi_xy``, ``dtype``, ... are set)."""
 
-    layout_dim = 0   # K: numbers per episode that draw_layout adds to the initial conditions
+    layout_dim = 0      # K: numbers per episode that draw_layout adds to the initial conditions
+    fixed_pois = True   # the POIs are World.poi_xy in every episode: the occupancy and C8 measures read them
+                        # (the behaviour observer leaves those measures out of a world that sets False)
 
     def check(self) -> None:
         """Check the plug-in's own fields (raise ``errors.ConfigError``: one line naming key, value and what is

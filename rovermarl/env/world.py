@@ -30,6 +30,7 @@ from rovermarl.env.scenario import Scenario
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
 _NO_FINAL = np.empty((0, 1, 2))
+_NO_LAYOUT = np.empty((0, 0))
 
 DTYPES = ("float64", "float32")   # env.dtype: float32 is close to float64, not bit-identical (README)
 HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
@@ -120,6 +121,7 @@ class World(Scenario):
         c = np.array(self.coupling, dtype=np.float64)
         types = {"coupling": c - 1.0, "sign": np.where(c == 1, -1.0, 1.0), "value": self._value.copy()}
         object.__setattr__(self, "_type", types[self.poi_type])
+        object.__setattr__(self, "_obs_dim", sum(low.size for _, low, _ in self.obs_blocks()))
         f = np.dtype(self.dtype).type                              # env.dtype: the kernel's precision
         object.__setattr__(self, "_float", f)
         object.__setattr__(self, "kernel", kernel.KernelWorld(    # the world as the kernel reads it, passed whole
@@ -135,8 +137,8 @@ class World(Scenario):
         return kernel_module(self.hooks)
 
     def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:
-        """:attr:`kernel` with the initial conditions' ``layout`` (E, K)."""
-        return self.kernel._replace(layout=layout)
+        """:attr:`kernel` with the initial conditions' ``layout`` (E, K) (a world without one: :attr:`kernel`)."""
+        return self.kernel._replace(layout=layout) if self.layout_dim else self.kernel
 
     @property
     def poi_sensor_type(self) -> np.ndarray:
@@ -174,7 +176,7 @@ class World(Scenario):
     def obs_dim(self) -> int:
         """The sum of :meth:`obs_blocks`: 3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers) in the
         paper's world."""
-        return sum(low.size for _, low, _ in self.obs_blocks())
+        return self._obs_dim
 
     @property
     def n_params(self) -> int:
@@ -352,6 +354,8 @@ class World(Scenario):
         if xy.shape[-2:] != (self.n_rovers, 2) or heading.shape != xy.shape[:-1]:
             raise ValueError(f"expected xy (..., {self.n_rovers}, 2) and heading (..., {self.n_rovers}), "
                              f"got {xy.shape} and {heading.shape}")
+        if not self.layout_dim and (layout is None or layout.shape[-1] == 0):
+            return xy, heading, _NO_LAYOUT                              # unread: the kernel's record has its own
         if layout is None:
             if self.layout_dim:
                 raise ValueError(f"{type(self).__name__}'s initial conditions carry a layout (..., "

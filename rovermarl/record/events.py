@@ -33,7 +33,7 @@ class BehaviourObserver:
 
     def __init__(self, world, ic, cfg, changes: bool = True):
         self.world, self.ic, self.changes = world, ic, changes
-        self.occupancy_on = bool(cfg.get("occupancy", True))
+        self.occupancy_on = bool(cfg.get("occupancy", True)) and world.fixed_pois   # they read World.poi_xy
         self.behaviour_on = bool(cfg.get("behaviour", True))
         shape = ic[0].shape                                            # (E, N, 2)
         self.evaluation = None

@@ -171,7 +171,7 @@ def _scene(rec, rr, world) -> None:
     coupling = np.array(world.coupling)
     colors = palette.poi_rgb(coupling)
     rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)      # y up on screen
-    rec.log("world/pois", rr.Points2D(world.poi_xy, radii=0.35, colors=colors, draw_order=40.0), static=True)
+    rec.log("world/pois", rr.Points2D(world.poi_positions(), radii=0.35, colors=colors, draw_order=40.0), static=True)
     out = world.poi_xy * (1 + (world.obs_radius + 0.9) / max(world.poi_distance, 1e-9))
     rec.log("world/poi_labels", rr.Points2D(out, radii=0.0, colors=colors, labels=poi_labels(world),
                                             show_labels=True), static=True)   # outside the rings
@@ -181,6 +181,7 @@ def _scene(rec, rr, world) -> None:
                                                 draw_order=10.0), static=True)
     rec.log("world/start_boxes", rr.LineStrips2D(world.start_squares, colors=palette.rover_rgb(world.n_rovers),
                                                  radii=-1.0, draw_order=20.0), static=True)
+    world.log_static(rec)                                                        # a plug-in's own
 
 
 def _columns(rr, generations) -> list:

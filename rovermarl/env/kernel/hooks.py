@@ -10,7 +10,8 @@ obs (D*N*E,) feature-major; ``w`` is the world's :class:`~rovermarl.env.kernel.f
   with ``finite``, the MLP leaves out the tanh's NaN case; return False if unsure);
 - ``move(x, y, heading, sin_h, cos_h, a0, a1, w)``: one step of motion in place (sin_h, cos_h follow heading);
 - ``score_start(w, n_ep) -> acc``: the reward's state before the first step (any tuple of arrays);
-- ``score_step(w, x, y, xy, acc)``: after every step (xy (E, N, 2) float64 scratch; a no-op for a final reward);
+- ``stepwise(w) -> bool``: whether ``score_step`` runs after every step (False for a reward of the final positions);
+- ``score_step(w, x, y, xy, acc)``: after every step where ``stepwise`` (xy (E, N, 2) float64 scratch);
 - ``score_end(w, xy, acc, returns)``: the returns (E,) from the final positions xy (E, N, 2) float64 and acc;
 - ``rows(n, w) -> (N, D) int64``: each rover's input rows that may be nonzero, increasing, then -1
   (``checks.input_rows``; every row ``0..D-1`` when unsure);
@@ -27,18 +28,6 @@ from rovermarl.env.kernel.reward import fold, reward, settle, start
 from rovermarl.env.kernel.rules import FINAL
 from rovermarl.env.kernel.stages import from_flat, move_flat, sense_flat
 from rovermarl.jit import njit
-
-
-class Hooks(NamedTuple):
-    """A world's compiled hooks (numba functions with the signatures above)."""
-
-    sense: object
-    move: object
-    score_start: object
-    score_step: object
-    score_end: object
-    rows: object
-    finite: object
 
 
 @njit(inline="always", **FAST)
@@ -60,8 +49,14 @@ def score_start(w, n_ep):
 
 
 @njit(inline="always", cache=True)
+def stepwise(w):
+    """A per-step reading of ``env.reward`` scores every step; ``final`` the last positions only."""
+    return w.reward_mode != FINAL
+
+
+@njit(inline="always", cache=True)
 def score_step(w, x, y, xy, acc):
-    """A per-step reading folds every step's positions (``reward.fold``); ``final`` waits for the last."""
+    """A per-step reading folds every step's positions (``reward.fold``)."""
     if w.reward_mode != FINAL:
         from_flat(x, xy[:, :, 0])
         from_flat(y, xy[:, :, 1])
@@ -90,4 +85,18 @@ def finite(genomes, w):
     return mlp_finite(genomes, w.poi_type, w.sensor_range)
 
 
-ROVERS = Hooks(sense, move, score_start, score_step, score_end, rows, finite)
+class Hooks(NamedTuple):
+    """A world's compiled hooks (numba functions with the signatures above); each defaults to the paper's world's,
+    so a plug-in names only those it changes: ``Hooks(sense=my_sense, move=my_move)``."""
+
+    sense: object = sense
+    move: object = move
+    stepwise: object = stepwise
+    score_start: object = score_start
+    score_step: object = score_step
+    score_end: object = score_end
+    rows: object = rows
+    finite: object = finite
+
+
+ROVERS = Hooks()

@@ -184,7 +184,6 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
 def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, ranged):
     """The loops of :func:`sense_flat`; ``ranged`` (a constant at each call) goes to :func:`bearing`."""
     ne = x.shape[0]
-    ep = ne // n
     p = poi_xy.shape[0]
     inv_pi = like(sensor_range, 1.0 / math.pi)
     inv_range = like(sensor_range, 1.0) / sensor_range
@@ -200,8 +199,19 @@ def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, rang
             b = bearing(dx, dy, cos_h[q], sin_h[q], ranged)
             obs[o + U(q)], obs[o + U(ne + q)], obs[o + U(2 * ne + q)] = reading(
                 d, sensor_range, d * inv_range, b * inv_pi, typ)
+    sense_rovers(x, y, sin_h, cos_h, n, 3 * p, sensor_range, obs, ranged)
+
+
+@njit(inline="always", **FAST)
+def sense_rovers(x, y, sin_h, cos_h, n, row, sensor_range, obs, ranged=False):
+    """The rover block of the observation in the flat layout: rover m's ``[d / range, bearing / pi]`` at rows
+    ``row + 2m`` (own slot ``[0, 0]``), for a world plug-in's ``sense`` hook too. ``ranged``: as :func:`bearing`."""
+    ne = x.shape[0]
+    ep = ne // n
+    inv_pi = like(sensor_range, 1.0 / math.pi)
+    inv_range = like(sensor_range, 1.0) / sensor_range
     for m in range(n):
-        o = U((3 * p + 2 * m) * ne)
+        o = U((row + 2 * m) * ne)
         for i in range(n):
             qi = U(i * ep)
             qm = U(m * ep)

@@ -1,0 +1,135 @@
+"""POIs drawn per episode inside a ring: a world plug-in, one module plus one yaml (``env/random_pois.yaml``).
+
+The paper's world, except that every initial condition also draws where the POIs are: POI ``j`` uniformly (by area)
+in the ring ``ring_inner <= |xy| <= ring_outer`` (its coupling and value as the setup says). A policy cannot
+memorise places: it must steer by its POI sensors. Held-out scores (fresh initial conditions, so fresh POI layouts)
+show whether it did. The POIs of an episode are its ``layout`` (2P numbers), stored with the initial conditions.
+
+Run it from the repository root (``python -m`` puts the current directory on the import path)::
+
+    python -m rovermarl.train env=random_pois hydra.searchpath=[file://examples/random_pois] generations=200 seeds=2
+
+======================== ==============================================================================
+Parameters (``env.*``)   the paper's world's, and ``ring_inner``, ``ring_outer``; ``reward: final`` only
+Observation              the paper's: 3P + 2N numbers (38)
+Layout                   (2P,) per episode: the POIs' x, y
+Hooks                    ``sense`` and the reward read the episode's POIs; ``move`` is the paper's
+Not measured             occupancy and C8 switches (they read fixed POIs: ``fixed_pois = False``); the CCEA's
+                         D and D++ credit (``team_return`` has no episode to read the POIs of)
+======================== ==============================================================================
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from rovermarl import errors
+from rovermarl.env import World
+from rovermarl.env.kernel.hooks import Hooks
+from rovermarl.env.kernel.math import FAST, like
+from rovermarl.env.kernel.reward import payout
+from rovermarl.env.kernel.rules import bearing, reading, within
+from rovermarl.env.kernel.stages import sense_rovers
+from rovermarl.jit import njit
+
+
+@njit(inline="always", **FAST)
+def sense(x, y, sin_h, cos_h, n, w, obs):
+    """The paper's sensors, each POI where the episode's layout puts it (pair ``q = i*E + e`` is episode ``e``)."""
+    ne = x.shape[0]
+    ep = ne // n
+    inv_pi = like(w.sensor_range, 1.0 / math.pi)
+    for j in range(w.poi_xy.shape[0]):
+        o = 3 * j * ne
+        for q in range(ne):
+            e = q % ep
+            dx = like(x[q], w.layout[e, 2 * j]) - x[q]
+            dy = like(x[q], w.layout[e, 2 * j + 1]) - y[q]
+            d = math.sqrt(dx * dx + dy * dy)
+            b = bearing(dx, dy, cos_h[q], sin_h[q], False)
+            obs[o + q], obs[o + ne + q], obs[o + 2 * ne + q] = reading(
+                d, w.sensor_range, d / w.sensor_range, b * inv_pi, w.poi_type[j])
+    sense_rovers(x, y, sin_h, cos_h, n, 3 * w.poi_xy.shape[0], w.sensor_range, obs)
+    return False                                       # not the ranged bearings: the MLP keeps its general tanh
+
+
+@njit(inline="always", cache=True)
+def stepwise(w):
+    return False                                       # the final positions only
+
+
+@njit(inline="always", cache=True)
+def score_start(w, n_ep):
+    return (np.empty(0),)                              # the final positions are all the reward reads
+
+
+@njit(inline="always", cache=True)
+def score_step(w, x, y, xy, acc):
+    pass
+
+
+@njit(inline="always", cache=True)
+def score_end(w, xy, acc, returns):
+    """The paper's reward rule (``within``, ``payout``) on the episode's POIs: xy (E, N, 2) after the last step."""
+    count = np.zeros((xy.shape[0], w.coupling.shape[0]), np.int64)
+    for e in range(xy.shape[0]):
+        for j in range(w.coupling.shape[0]):
+            for i in range(xy.shape[1]):
+                count[e, j] += within(w.layout[e, 2 * j], w.layout[e, 2 * j + 1], xy[e, i, 0], xy[e, i, 1],
+                                      w.obs_radius)
+    payout(count, w.coupling, w.value, returns)
+
+
+@dataclass(frozen=True, eq=False)
+class RandomPois(World):
+    """The paper's world with the POIs drawn per episode in a ring (``ring_inner`` to ``ring_outer``).
+
+    >>> w = RandomPois(coupling=(1,) * 10, value=(1.0,) * 10)
+    >>> ic = w.initial_conditions(seed=0, n=3)
+    >>> ic.layout.shape, bool((np.hypot(*w.poi_positions(ic.layout[0]).T) >= 8.0).all())
+    ((3, 20), True)
+    """
+
+    ring_inner: float = 8.0
+    ring_outer: float = 14.0
+    hooks = Hooks(sense=sense, stepwise=stepwise, score_start=score_start, score_step=score_step,
+                  score_end=score_end)                   # the paper's motion and checks
+    fixed_pois = False
+
+    @property
+    def layout_dim(self) -> int:
+        return 2 * self.n_pois
+
+    def check(self) -> None:
+        errors.number("env.ring_inner", self.ring_inner, 0)
+        errors.number("env.ring_outer", self.ring_outer, self.ring_inner)
+        if self.reward != "final":
+            raise errors.ConfigError("env.reward", self.reward, "random_pois scores the final positions only: final")
+
+    def draw_layout(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """(n, 2P): each POI uniform by area in the ring, drawn after the rovers' starts."""
+        r = np.sqrt(rng.uniform(self.ring_inner ** 2, self.ring_outer ** 2, size=(n, self.n_pois)))
+        angle = rng.uniform(0.0, 2 * np.pi, size=(n, self.n_pois))
+        return np.stack([r * np.cos(angle), r * np.sin(angle)], axis=-1).reshape(n, 2 * self.n_pois)
+
+    def poi_positions(self, layout=None) -> np.ndarray:
+        """The episode's POIs (P, 2); without a layout the paper's circle (a placeholder for figures' legends)."""
+        return self.poi_xy if layout is None else np.asarray(layout, np.float64).reshape(self.n_pois, 2)
+
+    def team_return(self, xy):
+        raise ValueError("random_pois: team_return needs an episode's POIs; use episode_return(xy, layout)")
+
+    def draw(self, ax, layout=None) -> None:
+        from matplotlib.patches import Circle
+        for r in (self.ring_inner, self.ring_outer):
+            ax.add_patch(Circle((0.0, 0.0), r, fill=False, ec="0.6", lw=0.6, ls="--", zorder=0))
+
+    def log_static(self, rec, layout=None) -> None:
+        import rerun as rr
+        theta = np.linspace(0, 2 * np.pi, 129)
+        rings = [r * np.stack([np.cos(theta), np.sin(theta)], axis=1) for r in (self.ring_inner, self.ring_outer)]
+        rec.log("world/ring", rr.LineStrips2D(rings, colors=[150, 150, 150], radii=-1.0, draw_order=5.0),
+                static=True)
