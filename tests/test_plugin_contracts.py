@@ -76,3 +76,38 @@ def test_random_search_declares_lam_evaluations_per_generation():
     finally:
         sys.path.pop(0)
     assert RandomSearch(make_world("solo"), lam=4).evaluations_per_generation() == 4.0
+
+
+def test_random_search_spends_exactly_lam_evaluations_and_the_observer_sees_each_accepted_team():
+    """The evaluation returns the team's final positions with its score, so an algorithm that keeps a child other
+    than the last evaluated needs no re-evaluation: the observer's occupancy is the accepted team's own."""
+    from rovermarl.runner.chunk import Run
+    from omegaconf import OmegaConf
+    sys.path.insert(0, str(ROOT))
+
+    from rovermarl.config import compose_config
+    cfg = compose_config("generations=40", "parallel=serial", "setup=duo")
+    algo = OmegaConf.load(ROOT / "examples/random_search/algorithm/random_search.yaml")
+    algo["_target_"] = "examples.random_search.random_search.RandomSearch"
+    cfg.algorithm = algo
+    run = Run(cfg, 3)
+    calls = run.evaluate.calls
+    run.advance(40)
+    assert run.evaluate.calls - calls == 40 * 4                       # lam = 4 per generation, no re-evaluation
+    team = run.team
+    xy = np.empty((16, 4, 2))
+    run.evaluate.world.evaluate(team, run.ic, xy)
+    np.testing.assert_array_equal(run.observer.parent_xy, xy)         # the accepted team's own final positions
+
+
+def test_the_observer_refuses_a_score_without_its_evaluation_in_one_line():
+    from rovermarl.algorithms.base import AlgorithmError
+    from rovermarl.record.events import BehaviourObserver
+    world = make_world("solo")
+    obs = BehaviourObserver(world, world.run_ic(0), {})
+    team = np.zeros((4, world.n_params))
+    with pytest.raises(AlgorithmError, match="pass on the value evaluate returned") as e:
+        obs.accepted(1, team, 2.0, True)
+    assert "\n" not in str(e.value)
+    with pytest.raises(AlgorithmError):
+        obs.evaluated(np.array([True, False, False, False]), float(world.evaluate(team, world.run_ic(0))))

@@ -30,7 +30,7 @@ class RandomSearch(Algorithm):
         self.series = (Series("best_child", "float64", fill=np.nan, doc="score of the best of the lam children"),)
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
-        """``lam`` children per generation (and one re-evaluation when an accepted child was not the last)."""
+        """``lam`` children per generation."""
         return float(self.lam)
 
     def _init(self, seeds, evaluate):
@@ -50,12 +50,11 @@ class RandomSearch(Algorithm):
         best_child, after = np.empty(n), np.empty(n)
         for t in range(n):
             children = team + rng.normal(0.0, self.sigma, (self.lam, *team.shape))   # (lam, N, P)
-            scores = np.array([evaluate(child) for child in children])
+            evaluated = [evaluate(child) for child in children]     # what the observer reads of each child
+            scores = np.array(evaluated)
             best = int(np.argmax(scores))
             if scores[best] >= score:
-                if best != self.lam - 1:
-                    evaluate(children[best])             # the observer reads the team evaluated last
-                observer.accepted(generation + t + 1, children[best], scores[best], scores[best] != score)
+                observer.accepted(generation + t + 1, children[best], evaluated[best], scores[best] != score)
                 team, score = children[best], float(scores[best])
             best_child[t], after[t] = scores[best], score
         return {"team": team, "score": score, "rng": rng.bit_generator.state}, {"score": after,

@@ -35,8 +35,9 @@ from typing import Protocol
 import numpy as np
 
 from rovermarl import errors
+from rovermarl.env.evaluated import Evaluated
 
-Evaluate = Callable[[np.ndarray], float]   # team genomes (N, P) -> score F on the run's initial conditions
+Evaluate = Callable[[np.ndarray], Evaluated]   # team genomes (N, P) -> score F on the run's initial conditions
 # The runner's Evaluate also has ``fresh`` (bool) and ``draw(generation)``: under ``evaluation.fresh_ic`` an
 # algorithm with ``fresh_ic = True`` calls ``draw(g)`` once per generation g and scores every team it compares on
 # that set (a plain callable has no ``fresh``: read it with ``getattr(evaluate, "fresh", False)``).
@@ -72,21 +73,23 @@ class Series:
 class Observer(Protocol):
     """What an algorithm tells the behaviour observer (see :mod:`rovermarl.record.events`) inside its loop.
 
-    The observer reads the final positions of the team evaluated last from the evaluation it was built on.
+    ``score`` is what ``evaluate`` returned for that team (an :class:`Evaluated`: the observer reads its final
+    positions there), not a float made of it; a float is refused in one line when the observer measures positions.
     """
 
-    def evaluated(self, mutated: np.ndarray) -> int:
-        """The team just evaluated changed the rovers ``mutated`` (N,) bool of the parent team; returns the number
-        of episodes in which another rover ends at another POI than under the parent team (-1: not measured)."""
+    def evaluated(self, mutated: np.ndarray, score: Evaluated) -> int:
+        """A team that changed the rovers ``mutated`` (N,) bool of the parent team was evaluated (``score``); returns
+        the number of episodes in which another rover ends at another POI than under the parent team (-1: not
+        measured)."""
 
-    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
-        """The team evaluated last (genomes (N, P), ``score``) became the parent team at ``generation``."""
+    def accepted(self, generation: int, genomes: np.ndarray, score: Evaluated, score_changed: bool) -> None:
+        """The team genomes (N, P), evaluated as ``score``, became the parent team at ``generation``."""
 
 
 class NullObserver:
     """An observer that measures nothing (``evaluated`` returns -1)."""
 
-    def evaluated(self, mutated: np.ndarray) -> int:
+    def evaluated(self, mutated: np.ndarray, score: Evaluated) -> int:
         return -1
 
     def switch_inputs(self) -> None:
@@ -127,7 +130,7 @@ class Algorithm:
         """A fresh run's state and its initial team's score. ``seeds`` is the run's ``SeedSequence`` after the
         runner took its own streams; spawn the algorithm's streams from it."""
         state, score = self._init(seeds, evaluate)
-        return state, float(score)
+        return state, score if isinstance(score, Evaluated) else float(score)
 
     def advance(self, state: dict, generation: int, n: int, evaluate: Evaluate,
                 observer: Observer) -> tuple[dict, dict[str, np.ndarray]]:

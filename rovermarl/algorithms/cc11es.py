@@ -87,7 +87,7 @@ class CC11ES(Algorithm):
                 evaluate.draw(g + 1)                                          #    parents scored on it too
                 f_parent = evaluate(team.genomes(parents))
             f_child = evaluate(genomes)                                       # 4. evaluate the team
-            h["switched"][t] = observer.evaluated(team.mutated(chosen))       #    did unmutated rovers switch POI?
+            h["switched"][t] = observer.evaluated(team.mutated(chosen), f_child)   # did unmutated rovers switch POI?
             accepted = accept(f_child, f_parent)                              # 5. all k children or none
             selector.update(k, f_child, f_parent)                             # 6. reward the selector
             if accepted:                                                      # 7. the observer logs the change

@@ -78,7 +78,7 @@ class CCEA(Algorithm):
             f = evaluate(team)                                                              # 4. the elites team
             evals += self.pop_size + 1
             observer.accepted(generation + t + 1, team, f, f > best)
-            best = max(best, f)
+            best = max(best, float(f))
             score[t], h["team_evals"][t] = f, evals
         state = {"pops": pops, "score": score[-1] if n else state["score"], "best": best, "evals": evals,
                  "rng": rng.bit_generator.state}

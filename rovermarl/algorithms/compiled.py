@@ -21,6 +21,7 @@ from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
 from rovermarl.algorithms.operators.selection import Selection, keeps
 from rovermarl.algorithms.operators.selectors import EXP3, FixedK, bandit_reward, draw_arm, exp3_update
 from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam, pick_distinct
+from rovermarl.env.evaluated import Evaluated
 from rovermarl.env.kernel import rollout, score, switched
 from rovermarl.jit import njit
 
@@ -65,7 +66,8 @@ def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> t
             *args, final, parent_poi, poi_xy, radius,
             h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", _NO_PROBS))
         if t > 0 and h["accepted"][t - 1]:                   # the generation that stopped the call kept its team
-            observer.accepted(generation + t, team.genomes(parents.copy()), f_parent, f_parent != f_before)
+            accepted = Evaluated(f_parent, None if final_xy is None else final_xy.copy())   # its final positions
+            observer.accepted(generation + t, team.genomes(parents.copy()), accepted, f_parent != f_before)
     evaluate.calls += n
     if exp3:
         selector.load_state_dict({"log_w": log_w})                  # its probabilities: the same function's

@@ -12,6 +12,7 @@ import ray
 from omegaconf import OmegaConf
 
 from rovermarl.env import World
+from rovermarl.env.evaluated import Evaluated
 from rovermarl.env.world import score
 from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
@@ -40,7 +41,7 @@ class ShardActor:
 class ShardedEvaluation:
     """An evaluation over shard actors, with the same results as local evaluation
     (:class:`rovermarl.runner.chunk.Evaluation`): ``evaluate(genomes (N, P)) -> F``; with ``keep_final``,
-    ``final_xy`` (E, N, 2) holds the final positions of the team evaluated last; ``fresh_seed`` and :meth:`draw` as
+    each score an ``Evaluated`` with the team's final positions (E, N, 2); ``fresh_seed`` and :meth:`draw` as
     there (each actor draws its slice of a generation's initial conditions itself)."""
 
     def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
@@ -57,14 +58,15 @@ class ShardedEvaluation:
         ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, (lo, hi) in zip(self.actors, self.slices,
                                                                                        strict=True)])
 
-    def __call__(self, genomes: np.ndarray) -> float:
+    def __call__(self, genomes: np.ndarray) -> Evaluated:
         self.calls += 1
         genomes = np.ascontiguousarray(genomes)                         # small: sent inline with each call
         parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
-        if self.final_xy is not None:
-            self.final_xy[...] = np.concatenate([f for _, f in parts])
-        return score(returns)
+        if self.final_xy is None:
+            return Evaluated(score(returns), None)
+        self.final_xy[...] = np.concatenate([f for _, f in parts])
+        return Evaluated(score(returns), self.final_xy.copy())
 
 
 def run_sharded(cfg, job: dict, records, on_chunk, advance) -> None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rovermarl.algorithms.base import AlgorithmError
 from rovermarl.env.kernel import observers, poi_of, switched
 from rovermarl.jit import njit
 
@@ -27,8 +28,9 @@ class BehaviourObserver:
     """Measures a run's behaviour from the evaluations its algorithm makes (see the module doc).
 
     Built on the world, the run's initial conditions ``ic`` and the ``record`` switches (``occupancy``,
-    ``behaviour``; on if absent); :meth:`watch` connects it to the run's evaluation, whose ``final_xy`` (E, N, 2)
-    holds the final positions of the team evaluated last. Its own buffers hold the parent team's.
+    ``behaviour``; on if absent). It reads a team's final positions from the score its evaluation returned
+    (:class:`~rovermarl.env.evaluated.Evaluated`, passed to :meth:`evaluated` and :meth:`accepted`); its own buffers
+    hold the parent team's.
     """
 
     def __init__(self, world, ic, cfg, changes: bool = True):
@@ -36,7 +38,6 @@ class BehaviourObserver:
         self.occupancy_on = bool(cfg.get("occupancy", True)) and world.fixed_pois   # they read World.poi_xy
         self.behaviour_on = bool(cfg.get("behaviour", True))
         shape = ic[0].shape                                            # (E, N, 2)
-        self.evaluation = None
         self.parent_xy = np.empty(shape) if self.occupancy_on else None
         self.parent_poi = np.empty(shape[:2], dtype=np.int16)            # POI each rover observes at the end, -1: none
         self._radius = float(world.obs_radius)
@@ -52,10 +53,6 @@ class BehaviourObserver:
         """Whether the evaluation must keep final positions for this observer."""
         return self.occupancy_on
 
-    def watch(self, evaluation) -> None:
-        """Read final positions from ``evaluation.final_xy`` (E, N, 2) after each evaluation."""
-        self.evaluation = evaluation
-
     def occupancy(self, final_xy: np.ndarray) -> np.ndarray:
         """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
         return occupancy(self.world, final_xy)
@@ -67,12 +64,21 @@ class BehaviourObserver:
         _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
         return out
 
-    def evaluated(self, mutated: np.ndarray) -> int:
-        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated last than
-        under the parents; -1 if every rover was mutated or occupancy is off."""
+    def evaluated(self, mutated: np.ndarray, score) -> int:
+        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated as
+        ``score`` (what ``evaluate`` returned) than under the parents; -1 if every rover was mutated or occupancy is
+        off."""
         if not self.occupancy_on:
             return -1
-        return switched(self.evaluation.final_xy, self.world.poi_xy, self._radius, self.parent_poi, mutated)
+        return switched(self._final_xy(score), self.world.poi_xy, self._radius, self.parent_poi, mutated)
+
+    def _final_xy(self, score) -> np.ndarray:
+        """The final positions (E, N, 2) the evaluation returned with ``score``; a float is refused in one line."""
+        xy = getattr(score, "final_xy", None)
+        if xy is None:
+            raise AlgorithmError(f"the behaviour observer was given score {float(score)!r} ({type(score).__name__}) "
+                                 "without its evaluation's final positions: pass on the value evaluate returned")
+        return xy
 
     def switch_inputs(self) -> tuple | None:
         """What :meth:`evaluated` compares, for a compiled loop that measures it itself
@@ -85,9 +91,10 @@ class BehaviourObserver:
         self.accepted(0, genomes, score, True)
 
     def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
-        """The team evaluated last (genomes (N, P)) became the parent at ``generation``."""
+        """The team genomes (N, P), evaluated as ``score`` (what ``evaluate`` returned), became the parent at
+        ``generation``."""
         if self.occupancy_on:
-            self.parent_xy[...] = self.evaluation.final_xy
+            self.parent_xy[...] = self._final_xy(score)
             self.observed(self.parent_xy, self.parent_poi)
             count = self.occupancy(self.parent_xy)
             if self.count is None or not np.array_equal(count, self.count):

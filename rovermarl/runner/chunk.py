@@ -21,6 +21,7 @@ from omegaconf import DictConfig, OmegaConf
 from rovermarl import errors
 from rovermarl.algorithms.base import Algorithm, build_operator
 from rovermarl.env import World
+from rovermarl.env.evaluated import Evaluated
 from rovermarl.record.events import BehaviourObserver
 from rovermarl.resources import CONF_DIR, packaged
 
@@ -100,8 +101,9 @@ def parts(cfg: dict) -> Parts:
 
 
 class Evaluation:
-    """``evaluate(genomes (N, P)) -> F`` on a run's initial conditions, in this process. With ``keep_final``,
-    :attr:`final_xy` (E, N, 2) holds the final positions of the team evaluated last. With ``fresh_seed`` (the run's
+    """``evaluate(genomes (N, P)) -> F`` on a run's initial conditions, in this process: an
+    :class:`~rovermarl.env.evaluated.Evaluated` carrying the team's final positions (E, N, 2) with ``keep_final``
+    (:attr:`final_xy` is the buffer they are written to). With ``fresh_seed`` (the run's
     seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and :meth:`draw` moves to a generation's own set.
     :attr:`calls` counts the team evaluations."""
 
@@ -117,7 +119,8 @@ class Evaluation:
 
     def __call__(self, genomes: np.ndarray) -> float:
         self.calls += 1
-        return self.world.evaluate(genomes, self.ic, self.final_xy)
+        score = self.world.evaluate(genomes, self.ic, self.final_xy)
+        return Evaluated(score, None if self.final_xy is None else self.final_xy.copy())
 
     def kernel_inputs(self) -> tuple:
         """``(world, ic, final_xy)``: what a compiled generation loop needs to evaluate teams itself, as this does
@@ -150,7 +153,6 @@ class Run:
         record = {**p.record, "occupancy": False} if fresh else p.record  # positions on other ICs: not comparable
         self.observer = BehaviourObserver(p.world, self.ic, record, changes=not fresh)
         self.evaluate = evaluation(p.world, self.ic, self.observer.needs_final, self.seed if fresh else None)
-        self.observer.watch(self.evaluate)
         if state is None:
             self.generation = 0
             self.algo_state, self.initial_score = p.algorithm.init(seeds, self.evaluate)
