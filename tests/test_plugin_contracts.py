@@ -81,8 +81,9 @@ def test_random_search_declares_lam_evaluations_per_generation():
 def test_random_search_spends_exactly_lam_evaluations_and_the_observer_sees_each_accepted_team():
     """The evaluation returns the team's final positions with its score, so an algorithm that keeps a child other
     than the last evaluated needs no re-evaluation: the observer's occupancy is the accepted team's own."""
-    from rovermarl.runner.chunk import Run
     from omegaconf import OmegaConf
+
+    from rovermarl.runner.chunk import Run
     sys.path.insert(0, str(ROOT))
 
     from rovermarl.config import compose_config
