@@ -8,15 +8,23 @@ Manual control       No
 Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by default)
 Action shape         (2,): ``(a0, a1)`` in [-1, 1] (speed, turn; SPEC section 3), clipped to that box
 Action values        ``Box(-1, 1, (2,), float64)`` (float32 under ``env.dtype=float32``, as the observations)
-Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2)
+Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2); with
+                     ``time_feature=True`` the step t / T as a last number (39)
 Observation values   ``Box`` in ``env.dtype``: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
-Episode              ``env.steps`` (15) steps, then every agent is truncated; no termination
+State                ``state()``: every rover's x, y, cos and sin of its heading, t / T, and the episode's layout
+                     (a world plug-in's), float64; ``state_space`` its ``Box``
+Episode              ``env.steps`` (15) steps (``max_cycles`` sets it), then every agent is terminated
 Reward               the team's, the same for every agent (SPEC section 1, ``env.reward``): ``final`` pays the team
                      return at the last step and 0 before; a per-step reading pays the growth of its running value
                      (``mean_step``: each step's return / T), so the rewards sum to the episode's return
 ==================== ===========================================================================================
 
-``parallel_env(setup="duo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
+Why termination and not truncation at the horizon: the task is finite by definition (the paper scores the positions
+after step T), nothing follows step T and the reward of the last step is the last there is, so a learner must not
+bootstrap a value beyond it (truncation would tell it to). Give the policy the time (``time_feature=True``) and the
+episode is a Markov one with a terminal step.
+
+``parallel_env(setup="solo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
 the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_rovers``, ``steps``, ...).
 ``reset(seed=s)`` (``s`` an integer >= 0; anything else is refused with a ``ValueError``) starts from
 ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those initial conditions
@@ -30,10 +38,11 @@ so far in the world's reading (the episode's return after the last step, bit-ide
 ``step``. ``step`` refuses, before it changes anything, an actions dict that names an unknown agent or holds an
 action that is not 2 finite real numbers (``nan``, ``inf``, complex values, another shape), with a ``ValueError``
 naming the agent; the AEC form (:func:`env`) refuses the action at that agent's own step.
-``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib.
+``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib; ``"human"`` shows the same in
+a window where there is a display, and otherwise says once (a warning) that it cannot and draws nothing.
 
 >>> from rovermarl.pettingzoo import parallel_env
->>> e = parallel_env("duo")
+>>> e = parallel_env()
 >>> obs, infos = e.reset(seed=0)
 >>> e.agents, obs["rover_0"].shape
 (['rover_0', 'rover_1', 'rover_2', 'rover_3'], (38,))
@@ -41,6 +50,9 @@ naming the agent; the AEC form (:func:`env`) refuses the action at that agent's 
 
 from __future__ import annotations
 
+import os
+import sys
+import warnings
 from collections.abc import Mapping
 from numbers import Integral
 
@@ -61,15 +73,22 @@ ACTION_LOW, ACTION_HIGH = -1.0, 1.0
 ACTION_RULE = f"an action is 2 finite real numbers (speed, turn), clipped to [{ACTION_LOW:g}, {ACTION_HIGH:g}]"
 
 
-def parallel_env(setup: str = "duo", render_mode: str | None = None, **overrides) -> RoverParallelEnv:
-    """The parallel environment of ``setup`` with World field ``overrides`` (e.g. ``reward="any_step"``)."""
-    return RoverParallelEnv(make_world(setup, **overrides), render_mode=render_mode)
+def parallel_env(setup: str = "solo", render_mode: str | None = None, max_cycles: int | None = None,
+                 time_feature: bool = False, **overrides) -> RoverParallelEnv:
+    """The parallel environment of ``setup`` with World field ``overrides`` (e.g. ``reward="any_step"``);
+    ``max_cycles``: the episode's steps (``env.steps``, PettingZoo's name for the horizon)."""
+    if max_cycles is not None:
+        if "steps" in overrides and overrides["steps"] != max_cycles:
+            raise ValueError(f"max_cycles={max_cycles!r} and steps={overrides['steps']!r}: both set the horizon")
+        overrides["steps"] = max_cycles
+    return RoverParallelEnv(make_world(setup, **overrides), render_mode=render_mode, time_feature=time_feature)
 
 
-def env(setup: str = "duo", render_mode: str | None = None, **overrides):
+def env(setup: str = "solo", render_mode: str | None = None, max_cycles: int | None = None,
+        time_feature: bool = False, **overrides):
     """The AEC environment: :func:`parallel_env` through PettingZoo's ``parallel_to_aec`` (its wrapper, and the
     order-enforcing one), refusing a bad action at the agent's own step."""
-    return OrderEnforcingWrapper(_RoverAEC(parallel_env(setup, render_mode=render_mode, **overrides)))
+    return OrderEnforcingWrapper(_RoverAEC(parallel_env(setup, render_mode, max_cycles, time_feature, **overrides)))
 
 
 class _RoverAEC(parallel_to_aec_wrapper):
@@ -86,17 +105,21 @@ class _RoverAEC(parallel_to_aec_wrapper):
 class RoverParallelEnv(ParallelEnv):
     """One episode of one rover team at a time, on a :class:`~rovermarl.env.World`."""
 
-    metadata = {"name": "rovermarl_rovers_v0", "render_modes": ["rgb_array"], "is_parallelizable": True,
+    metadata = {"name": "rovermarl_rovers_v0", "render_modes": ["human", "rgb_array"], "is_parallelizable": True,
                 "render_fps": 4}
 
-    def __init__(self, world: World, render_mode: str | None = None):
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        self.world, self.render_mode = world, render_mode
+    def __init__(self, world: World, render_mode: str | None = None, time_feature: bool = False):
+        if render_mode not in (None, "human", "rgb_array"):
+            raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
+        self.world, self.render_mode, self.time_feature = world, render_mode, bool(time_feature)
         self.possible_agents = [f"rover_{i}" for i in range(world.n_rovers)]
         self.agents: list[str] = []
         low = np.concatenate([lo for _, lo, _ in world.obs_blocks()])       # the world's observation blocks
         high = np.concatenate([hi for _, _, hi in world.obs_blocks()])
+        if self.time_feature:
+            low, high = np.append(low, 0.0), np.append(high, 1.0)
+        n_state = 4 * world.n_rovers + 1 + world.layout_dim
+        self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float64)
         f = self._f = np.dtype(world.dtype).type                          # env.dtype: the kernel's precision
         self._obs_space = spaces.Box(low.astype(f), high.astype(f), dtype=f)
         self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=f)
@@ -152,10 +175,10 @@ class RoverParallelEnv(ParallelEnv):
         self.path[self.t] = self.xy[0]
         before, self.value = self.value, self._running_return()
         done = self.t == w.steps
-        reward = self.value - before if self._k.reward_mode != kernel.FINAL else self.value if done else 0.0
+        reward = self.value - before if w.compiled.stepwise(self._k) else self.value if done else 0.0
         agents = self.agents
-        out = (self._observe(), dict.fromkeys(agents, reward), dict.fromkeys(agents, False),
-               dict.fromkeys(agents, done), self._infos())
+        out = (self._observe(), dict.fromkeys(agents, reward), dict.fromkeys(agents, done),
+               dict.fromkeys(agents, False), self._infos())                    # terminated at the horizon: see above
         if done:
             self.agents = []
         return out
@@ -196,6 +219,8 @@ class RoverParallelEnv(ParallelEnv):
         w = self.world
         obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
         w.compiled.observe(self.xy, self.heading, self._k, obs)                 # the rollout's sense hook
+        if self.time_feature:
+            obs = np.concatenate([obs, np.full((1, w.n_rovers, 1), self.t / w.steps, self._f)], axis=2)
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
 
     def _infos(self) -> dict:
@@ -206,10 +231,20 @@ class RoverParallelEnv(ParallelEnv):
         return {agent: dict(info) for agent in self.possible_agents}
 
     # ---- drawing ---------------------------------------------------------------------------------------------
+    def state(self) -> np.ndarray:
+        """The global state (for a centralised critic): every rover's x, y, cos and sin of its heading, then t / T,
+        then the episode's layout (K,): float64 (``state_space``)."""
+        h = self.heading[0].astype(np.float64)
+        rovers = np.stack([*self.xy[0].astype(np.float64).T, np.cos(h), np.sin(h)], axis=1).ravel()
+        return np.concatenate([rovers, [self.t / self.world.steps], self.layout])
+
     def render(self):
-        """An (H, W, 3) uint8 image of the POIs and the rovers' paths so far (``render_mode="rgb_array"``)."""
-        if self.render_mode != "rgb_array":
+        """``rgb_array``: an (H, W, 3) uint8 image of the POIs and the rovers' paths so far; ``human``: the same in a
+        window (None), where there is a display."""
+        if self.render_mode is None:
             return None
+        if self.render_mode == "human":
+            return self._show()
         from rovermarl.analysis.draw import new_figure, scene
         fig = new_figure(4.0, 4.0)
         ax = fig.add_subplot()
@@ -220,8 +255,38 @@ class RoverParallelEnv(ParallelEnv):
         image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
         return image
 
+    def _show(self) -> None:
+        """The ``rgb_array`` image in a matplotlib window; without a display one warning, then nothing."""
+        if not _display():
+            if not getattr(self, "_warned", False):
+                warnings.warn("render_mode='human': no display here (no DISPLAY or WAYLAND_DISPLAY); nothing is shown."
+                              " Use render_mode='rgb_array' for images", stacklevel=2)
+                self._warned = True
+            return None
+        import matplotlib.pyplot as plt
+        self.render_mode = "rgb_array"
+        try:
+            image = self.render()
+        finally:
+            self.render_mode = "human"
+        if getattr(self, "_window", None) is None:
+            self._window = plt.figure("rovermarl").add_subplot()
+        self._window.clear()
+        self._window.imshow(image)
+        self._window.axis("off")
+        plt.pause(1.0 / self.metadata["render_fps"])
+        return None
+
     def close(self):
-        pass
+        if getattr(self, "_window", None) is not None:
+            import matplotlib.pyplot as plt
+            plt.close(self._window.figure)
+            self._window = None
+
+
+def _display() -> bool:
+    """Whether a window can be shown: a display on Linux, any desktop on macOS and Windows."""
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 def _seed(seed) -> int:

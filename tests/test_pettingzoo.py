@@ -3,7 +3,7 @@ World.evaluate's returns on the same initial conditions, under every world readi
 
 import numpy as np
 import pytest
-from pettingzoo.test import api_test, parallel_api_test, parallel_seed_test
+from pettingzoo.test import api_test, max_cycles_test, parallel_api_test, parallel_seed_test, render_test
 
 from rovermarl.env import make_world
 from rovermarl.pettingzoo import env, genome_policy, parallel_env
@@ -24,6 +24,39 @@ def test_seeding_is_deterministic():
     parallel_seed_test(lambda: parallel_env("solo"))
 
 
+def test_max_cycles_test_passes_max_cycles_is_the_horizon():
+    import rovermarl.pettingzoo as module
+    max_cycles_test(module)
+    assert parallel_env(max_cycles=7).world.steps == 7
+    with pytest.raises(ValueError, match="both set the horizon"):
+        parallel_env(max_cycles=7, steps=9)
+
+
+def test_render_test_passes_and_human_without_a_display_says_so(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    render_test(lambda render_mode=None: env(render_mode=render_mode))
+    e = parallel_env(render_mode="human")
+    e.reset(seed=0)
+    with pytest.warns(UserWarning, match="no display"):
+        assert e.render() is None
+
+
+def test_state_time_feature_and_the_default_setup():
+    e = parallel_env(time_feature=True)
+    assert e.world.name == "solo"                                       # the package's default setup
+    obs, _ = e.reset(seed=3)
+    assert obs["rover_0"].shape == (39,) and obs["rover_0"][-1] == 0.0
+    assert e.observation_space("rover_0").contains(obs["rover_0"])
+    state = e.state()
+    assert e.state_space.contains(state) and state.shape == (4 * 4 + 1,)
+    np.testing.assert_array_equal(state[:16].reshape(4, 4)[:, :2], e.xy[0])
+    for t in range(1, e.world.steps + 1):
+        obs, *_ = e.step({a: np.zeros(2) for a in e.agents})
+        assert obs["rover_0"][-1] == np.float64(t / e.world.steps).astype(obs["rover_0"].dtype)
+        assert e.state()[16] == t / e.world.steps
+
+
 @pytest.fixture(scope="module")
 def trained():
     """A team of genomes that reaches POIs: 300 generations of CC-(1+1)-ES on duo."""
@@ -38,8 +71,8 @@ def episode(e, policy, seed):
     while e.agents:
         obs, rew, term, trunc, infos = e.step(policy(obs))
         rewards.append(rew["rover_0"])
-        assert len(set(rew.values())) == 1 and not any(term.values())
-    assert all(trunc.values())
+        assert len(set(rew.values())) == 1 and not any(trunc.values())
+        assert all(term.values()) == (not e.agents)                    # terminated at the horizon, not before
     return np.array(rewards), infos
 
 

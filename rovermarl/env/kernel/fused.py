@@ -162,3 +162,41 @@ def returns_of(xy, w, out):
         score_step(w, flat[0], flat[1], scratch, acc)
     final = np.ascontiguousarray(xy[:, xy.shape[1] - 1])
     score_end(w, final, acc, out)
+
+
+@njit(**FAST)
+def env_step(xy, heading, actions, w, acc, value, obs):
+    """One step of E environments of the world ``w`` in one call, in place: move (hook ``move``), score (``score_step``
+    where ``stepwise``, then ``score_end``: the running value (E,) in ``value``), observe (``sense``) into obs (E, N, D).
+    xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; ``acc`` from ``score_start(w, E)``
+    (:func:`env_start`), carried from step to step of the episode."""
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    state = np.empty((7, ne), dtype=xy.dtype)
+    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
+    to_flat(xy[:, :, 0], x)
+    to_flat(xy[:, :, 1], y)
+    to_flat(heading, h)
+    to_flat(actions[:, :, 0], a0)
+    to_flat(actions[:, :, 1], a1)
+    sincos_all(h, sin_h, cos_h)
+    move(x, y, h, sin_h, cos_h, a0, a1, w)                # sin_h, cos_h follow the new heading
+    from_flat(x, xy[:, :, 0])
+    from_flat(y, xy[:, :, 1])
+    from_flat(h, heading)
+    pos = np.empty((n_ep, n, 2))                          # the reward reads float64
+    if stepwise(w):
+        score_step(w, x, y, pos, acc)
+    from_flat(x, pos[:, :, 0])
+    from_flat(y, pos[:, :, 1])
+    score_end(w, pos, acc, value)
+    flat = np.empty(w.obs_dim * ne, dtype=xy.dtype)
+    sense(x, y, sin_h, cos_h, n, w, flat)
+    for k in range(w.obs_dim):
+        from_flat(flat[k * ne:(k + 1) * ne], obs[:, :, k])
+
+
+@njit(cache=True)
+def env_start(w, n_ep):
+    """The reward state of E environments before their first :func:`env_step` (the hook ``score_start``)."""
+    return score_start(w, n_ep)

@@ -1,0 +1,178 @@
+"""The world as a batched environment for learners: B environments x N agents stepped in one compiled call.
+
+==================== ===========================================================================================
+Import               ``from rovermarl.vector import VectorEnv, GymVectorEnv``
+Agents               N rovers per environment (``env.n_rovers``, 4); B environments (``num_envs``)
+Observations         (B, N, D) in ``env.dtype``: the world's sensors (D = 38 in the paper's world), and with
+                     ``time_feature=True`` the step t / T as a last number (D + 1)
+Actions              (B, N, 2): ``(a0, a1)`` in [-1, 1] (speed, turn), clipped to that box
+Rewards              (B, N), the team's, the same for each agent: ``final`` pays the team return at the last step
+                     and 0 before; a per-step reading pays the growth of its running value (as the PettingZoo env)
+Episode              ``env.steps`` (15) steps, then every agent of every environment is terminated (all
+                     environments run in step; why termination: ``rovermarl.pettingzoo``)
+Auto-reset           same step: the step that terminates returns the next episode's first observations, the last
+                     ones in ``infos["final_obs"]`` and the episodes' returns in ``infos["final_return"]``
+==================== ===========================================================================================
+
+Each step is one compiled call (:func:`rovermarl.env.kernel.fused.env_step`: the world's own hooks, those of the
+rollout), so a policy and initial conditions give the episode returns :meth:`World.returns` gives. Any world plug-in
+works (``VectorEnv(world=...)``). ``reset(seed=s)`` draws the B starts of environment batch ``s`` from
+``World.initial_conditions(SeedSequence(s), n=B)`` (later auto-resets continue that stream); ``seed`` may also be a
+list of B integers, environment b's starts then come from its own ``SeedSequence(seed[b])``; ``options={"ic": ic}``
+starts from given initial conditions (e.g. ``World.run_ic``).
+:class:`GymVectorEnv` is a Gymnasium ``VectorEnv`` view with the agents flattened (B*N sub-environments sharing one
+policy, as SuperSuit's parameter sharing does) for single-agent libraries.
+
+>>> from rovermarl.vector import VectorEnv
+>>> env = VectorEnv(num_envs=8)
+>>> obs, infos = env.reset(seed=0)
+>>> obs.shape
+(8, 4, 38)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rovermarl.env import World, make_world
+
+
+class VectorEnv:
+    """B environments of one world (``world``, else ``make_world(setup, **overrides)``), stepped together."""
+
+    def __init__(self, num_envs: int = 1024, setup: str = "solo", world: World | None = None,
+                 time_feature: bool = False, **overrides):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs={num_envs!r}: must be an integer >= 1")
+        self.world = world if world is not None else make_world(setup, **overrides)
+        self.num_envs, self.n_agents = int(num_envs), self.world.n_rovers
+        self.time_feature = bool(time_feature)
+        self.obs_dim = self.world.obs_dim + self.time_feature
+        self.dtype = np.dtype(self.world.dtype)
+        low, high = (np.concatenate([b[i] for b in self.world.obs_blocks()]) for i in (1, 2))
+        if self.time_feature:
+            low, high = np.append(low, 0.0), np.append(high, 1.0)
+        self.obs_low, self.obs_high = low.astype(self.dtype), high.astype(self.dtype)
+        self._compiled = self.world.compiled
+        self._rng = np.random.default_rng()
+        self._rngs = None
+        self.t = 0
+
+    # ---- episodes ------------------------------------------------------------------------------------------------
+    def reset(self, seed=None, options: dict | None = None):
+        """Start B episodes; returns observations (B, N, D) and infos. ``seed``: None, an integer >= 0, or B of them;
+        ``options={"ic": ic}``: start from these B initial conditions."""
+        w, b = self.world, self.num_envs
+        if options and "ic" in options:
+            ic = tuple(np.asarray(a) for a in options["ic"])
+            if ic[1].shape != (b, self.n_agents):
+                raise ValueError(f"options['ic']: heading has shape {ic[1].shape}, expected ({b}, {self.n_agents})")
+        else:
+            self._seed(seed)
+            ic = self._draw()
+        xy, heading, layout = w._batch(*ic)
+        self.xy, self.heading = xy.astype(self.dtype), heading.astype(self.dtype)
+        self._k = w.kernel_for(np.ascontiguousarray(layout) if w.layout_dim else layout)
+        self._acc = self._compiled.env_start(self._k, b)
+        self.value = np.zeros(b)
+        self.t = 0
+        obs = np.empty((b, self.n_agents, w.obs_dim), self.dtype)
+        self._compiled.observe(self.xy, self.heading, self._k, obs)
+        return self._with_time(obs), {"step": 0}
+
+    def step(self, actions: np.ndarray):
+        """Move every rover of every environment by its action ``(a0, a1)`` (actions (B, N, 2), clipped to [-1, 1]).
+        Returns observations (B, N, D), rewards (B, N), terminations (B, N) (all at the horizon), truncations
+        (B, N) (never) and infos."""
+        a = np.asarray(actions)
+        if a.shape != (self.num_envs, self.n_agents, 2):
+            raise ValueError(f"actions have shape {a.shape}, expected ({self.num_envs}, {self.n_agents}, 2)")
+        if not np.isfinite(a).all():
+            raise ValueError("actions are not all finite numbers: an action is 2 finite numbers (speed, turn)")
+        a = np.clip(a, -1.0, 1.0).astype(self.dtype)
+        w, b, n = self.world, self.num_envs, self.n_agents
+        before = self.value.copy()
+        obs = np.empty((b, n, w.obs_dim), self.dtype)
+        self._compiled.env_step(self.xy, self.heading, a, self._k, self._acc, self.value, obs)
+        self.t += 1
+        done = self.t == w.steps
+        if self._compiled.stepwise(self._k):
+            reward = self.value - before
+        else:
+            reward = self.value if done else np.zeros(b)
+        rewards = np.repeat(reward[:, None], n, axis=1)
+        terminated = np.full((b, n), done)
+        infos = {"step": self.t, "return": self.value.copy()}
+        obs = self._with_time(obs)
+        if done:                                               # same-step auto-reset
+            infos.update(final_obs=obs, final_return=self.value.copy())
+            obs, _ = self.reset(options={"ic": self._draw()})
+        return obs, rewards, terminated, np.zeros((b, n), bool), infos
+
+    # ---- helpers ---------------------------------------------------------------------------------------------
+    def _with_time(self, obs: np.ndarray) -> np.ndarray:
+        if not self.time_feature:
+            return obs
+        t = np.full(obs.shape[:2] + (1,), self.t / self.world.steps, self.dtype)
+        return np.concatenate([obs, t], axis=2)
+
+    def _seed(self, seed) -> None:
+        if seed is None:
+            return
+        if np.ndim(seed) == 0:
+            self._rng, self._rngs = np.random.default_rng(np.random.SeedSequence(_int(seed))), None
+            return
+        seeds = [_int(s) for s in seed]
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"seed: {len(seeds)} seeds for {self.num_envs} environments")
+        self._rngs = [np.random.default_rng(np.random.SeedSequence(s)) for s in seeds]
+
+    def _draw(self):
+        """B starts: one draw from the batch's stream, or one per environment from its own."""
+        if self._rngs is None:
+            return self.world.initial_conditions(self._rng, n=self.num_envs)
+        parts = [self.world.initial_conditions(r, n=1) for r in self._rngs]
+        return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
+
+
+def _int(seed) -> int:
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed={seed!r}: must be None, an integer >= 0 or a list of them")
+    return int(seed)
+
+
+try:                                        # the Gymnasium view needs gymnasium (rovermarl[pettingzoo] has it)
+    import gymnasium
+    from gymnasium.vector import AutoresetMode
+except ModuleNotFoundError:                 # pragma: no cover - VectorEnv itself needs only numpy
+    gymnasium = None
+
+
+if gymnasium is not None:
+    class GymVectorEnv(gymnasium.vector.VectorEnv):
+        """A Gymnasium ``VectorEnv`` of B*N single-agent sub-environments: agent i of environment b is
+        sub-environment ``b*N + i`` (parameter sharing). Observations (B*N, D), actions (B*N, 2), rewards,
+        terminations, truncations (B*N,); same-step auto-reset (``infos["final_obs"]`` (B*N, D))."""
+
+        metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
+
+        def __init__(self, num_envs: int = 256, setup: str = "solo", world: World | None = None,
+                     time_feature: bool = True, **overrides):
+            self.env = VectorEnv(num_envs, setup, world, time_feature, **overrides)
+            e = self.env
+            self.num_envs = e.num_envs * e.n_agents
+            self.single_observation_space = gymnasium.spaces.Box(e.obs_low, e.obs_high, dtype=e.dtype)
+            self.single_action_space = gymnasium.spaces.Box(-1.0, 1.0, (2,), dtype=e.dtype)
+            self.observation_space = gymnasium.vector.utils.batch_space(self.single_observation_space, self.num_envs)
+            self.action_space = gymnasium.vector.utils.batch_space(self.single_action_space, self.num_envs)
+
+        def reset(self, *, seed=None, options=None):
+            obs, infos = self.env.reset(seed=seed, options=options)
+            return obs.reshape(self.num_envs, -1), infos
+
+        def step(self, actions):
+            e = self.env
+            obs, rew, term, trunc, infos = e.step(np.asarray(actions).reshape(e.num_envs, e.n_agents, 2))
+            if "final_obs" in infos:
+                infos = {**infos, "final_obs": infos["final_obs"].reshape(self.num_envs, -1)}
+            return (obs.reshape(self.num_envs, -1), rew.reshape(-1), term.reshape(-1), trunc.reshape(-1), infos)
