@@ -69,7 +69,8 @@ def test_auto_reset_and_seeds_per_environment():
     assert not np.array_equal(obs, infos["final_obs"]) and not np.array_equal(obs, first)
     env.reset(seed=list(range(10, 18)))
     for b in (0, 7):
-        np.testing.assert_array_equal(env.xy[b], env.world.initial_conditions(np.random.SeedSequence(10 + b), n=1).xy[0])
+        own = env.world.initial_conditions(np.random.SeedSequence(10 + b), n=1)
+        np.testing.assert_array_equal(env.xy[b], own.xy[0])
     with pytest.raises(ValueError, match="8 environments"):
         env.reset(seed=[1, 2])
     with pytest.raises(ValueError, match="shape"):

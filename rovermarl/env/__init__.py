@@ -1,7 +1,9 @@
-"""Rover world: geometry and initial conditions (``world``), what a world plug-in overrides (``scenario``), the
-compiled kernel in stages and hooks (``kernel``), and the SPEC in plain numpy (``reference``, the tests' oracle)."""
+"""Rover world: geometry (``world``), starts and initial conditions (``starts``), what a world plug-in overrides
+(``scenario``), the compiled kernel in stages and hooks (``kernel``), and the SPEC in plain numpy (``reference``, the
+tests' oracle)."""
 
 from rovermarl.env.make import make_world
-from rovermarl.env.world import InitialConditions, Rollout, World
+from rovermarl.env.starts import InitialConditions
+from rovermarl.env.world import Rollout, World
 
 __all__ = ["InitialConditions", "Rollout", "World", "make_world"]

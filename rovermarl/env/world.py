@@ -14,6 +14,7 @@ recordings follow (``docs/ARCHITECTURE.md``, "Adding a world").
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import ClassVar, NamedTuple
@@ -26,6 +27,7 @@ from rovermarl.env import kernel
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.env.scenario import Scenario
+from rovermarl.env.starts import Starts
 
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
@@ -33,16 +35,6 @@ _NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
 
 DTYPES = ("float64", "float32")   # env.dtype: float32 is close to float64, not bit-identical (README)
-HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
-
-
-class InitialConditions(NamedTuple):
-    """E episodes' starts: xy (E, N, 2), heading (E, N), and layout (E, K): what else a world draws per episode
-    (:meth:`World.draw_layout`; K = 0 for the paper's world). Any (xy, heading) pair is read with an empty layout."""
-
-    xy: np.ndarray
-    heading: np.ndarray
-    layout: np.ndarray
 
 
 class Rollout(NamedTuple):
@@ -54,7 +46,7 @@ class Rollout(NamedTuple):
 
 
 @dataclass(frozen=True, eq=False)
-class World(Scenario):
+class World(Starts, Scenario):
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
     ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
@@ -196,59 +188,6 @@ class World(Scenario):
         overlap = bool((d < 2 * self.obs_radius).any())
         return kernel.max_return(kernel.REWARDS.index(self.reward), self.coupling, self.value, self.n_rovers, overlap)
 
-    # ---- initial conditions -------------------------------------------------------------------
-    @property
-    def start_rotation(self) -> np.ndarray:
-        """(N,): rover ``i``'s start square is ``[0, start_box]^2`` turned by this angle about the origin, so that
-        its diagonal bisects heading sector ``i`` (for N = 4: the square of quadrant ``i``)."""
-        return (np.arange(self.n_rovers) + 0.5) * (2 * np.pi / self.n_rovers) - np.pi / 4
-
-    @property
-    def start_squares(self) -> np.ndarray:
-        """(N, 5, 2): the corners of each rover's start square, as a closed outline."""
-        unit = np.array([[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]], dtype=np.float64) * self.start_box
-        return self._turn(np.broadcast_to(unit, (self.n_rovers, 5, 2)).transpose(1, 0, 2)).transpose(1, 0, 2)
-
-    def _turn(self, xy: np.ndarray) -> np.ndarray:
-        """Points of quadrant-0 squares into each rover's square: xy (..., N, 2). For N = 4 the turns are exact
-        sign flips (SPEC's quadrants: 0: x, y >= 0; 1: x <= 0, y >= 0; 2: x, y <= 0; 3: x >= 0, y <= 0)."""
-        if self.n_rovers == 4:
-            return xy * np.array([[1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0], [1.0, -1.0]])
-        c, s = np.cos(self.start_rotation), np.sin(self.start_rotation)
-        return np.stack([xy[..., 0] * c - xy[..., 1] * s, xy[..., 0] * s + xy[..., 1] * c], axis=-1)
-
-    def initial_conditions(self, seed=0, n: int | None = None) -> InitialConditions:
-        """Draw ``n`` (default ``episodes``) starts: xy (n, N, 2), heading (n, N).
-
-        Rover ``i`` starts uniformly in its ``start_box`` square (:attr:`start_rotation`; quadrant ``i`` for N = 4),
-        heading uniform in its sector ``[2 pi i/N, 2 pi (i+1)/N]``. ``seed`` is an int, a ``SeedSequence`` or a
-        ``Generator``.
-        """
-        rng = np.random.default_rng(seed)
-        n = self.episodes if n is None else n
-        xy = self._turn(rng.uniform(0.0, self.start_box, size=(n, self.n_rovers, 2)))
-        sector = 2 * np.pi / self.n_rovers
-        low = sector * np.arange(self.n_rovers)
-        heading = low + rng.uniform(0.0, sector, size=(n, self.n_rovers))
-        layout = np.ascontiguousarray(self.draw_layout(rng, n), dtype=np.float64)     # after the starts
-        return InitialConditions(np.ascontiguousarray(xy), np.ascontiguousarray(heading), layout)
-
-    def run_ic(self, seed: int, generation: int = 0) -> InitialConditions:
-        """The initial conditions run ``seed`` is scored on: stream 0 of ``SeedSequence(seed)`` (SPEC section 5).
-        Under ``evaluation.fresh_ic`` generation ``g >= 1`` draws its own set from child ``g`` of that stream.
-
-        >>> w = make_world("solo")
-        >>> [a.shape for a in w.run_ic(3)], bool((w.run_ic(3, 1)[0] != w.run_ic(3)[0]).all())
-        ([(16, 4, 2), (16, 4)], True)
-        """
-        key = (0,) if generation == 0 else (0, int(generation))
-        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=key))
-
-    def heldout_ic(self, seed: int, n: int = 256) -> InitialConditions:
-        """``n`` initial conditions of run ``seed`` that its algorithm never sees, from a stream of their own
-        (spawn key :data:`HELDOUT_STREAM` of ``SeedSequence(seed)``): the held-out score's."""
-        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=(HELDOUT_STREAM,)), n=n)
-
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
         """Observations: xy (..., N, 2), heading (..., N) (and a plug-in's layout (..., K)) -> (..., N, obs_dim),
@@ -319,11 +258,31 @@ class World(Scenario):
         if final_xy is not None and final_xy.shape != xy0.shape:
             raise ValueError(f"final_xy must have shape {xy0.shape}, got {final_xy.shape}")
         self._run(genomes, xy0, h0, layout, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
+        _warn_unless_finite(genomes[None], out[None])
         return out
 
     def evaluate(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> float:
         """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
         return score(self.returns(genomes, ic, final_xy))
+
+    def evaluate_many(self, teams: np.ndarray, ic) -> np.ndarray:
+        """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic``, in one compiled call: each the
+        float :meth:`evaluate` gives (for an optimiser's population; a homogeneous team: :meth:`homogeneous`)."""
+        teams = np.ascontiguousarray(teams, dtype=np.float64)
+        if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
+            raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
+        xy0, h0, layout = self._batch(*ic)
+        scores = np.empty(teams.shape[0])
+        self.compiled.evaluate_many(*self._in_dtype(teams, xy0, h0), self.kernel_for(layout), scores)
+        _warn_unless_finite(teams, scores)
+        return scores
+
+    def homogeneous(self, genome: np.ndarray) -> np.ndarray:
+        """The team (N, P) of N copies of one rover's genome (P,) (the paper's homogeneous control)."""
+        genome = np.asarray(genome, dtype=np.float64)
+        if genome.shape != (self.n_params,):
+            raise ValueError(f"genome must have shape ({self.n_params},), got {genome.shape}")
+        return np.ascontiguousarray(np.broadcast_to(genome, (self.n_rovers, self.n_params)))
 
     def kernel_args(self, ic) -> tuple:
         """The arguments of the world's ``compiled.rollout`` after the genomes and before its outputs: the initial
@@ -371,6 +330,17 @@ def score(returns: np.ndarray) -> float:
     """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead
     (:func:`kernel.score <rovermarl.env.kernel.score>`)."""
     return float(kernel.score(returns))
+
+
+def _warn_unless_finite(teams: np.ndarray, scores: np.ndarray) -> None:
+    """One warning when a team that scored 0 has genomes (B, N, P) that are not finite numbers of sane size
+    (|w| < 1e150: beyond that the MLP's sums overflow), which the rollout plays as rovers that stop and score 0.
+    Checked only where a score is 0 (B,): other scores are not such a team's, and the check stays off the hot path."""
+    zero = ~scores.reshape(scores.shape[0], -1).any(axis=1)
+    if zero.any() and not (np.abs(teams[zero]) < 1e150).all():
+        bad = int(np.flatnonzero(zero)[~(np.abs(teams[zero]) < 1e150).reshape(zero.sum(), -1).all(axis=1)][0])
+        warnings.warn(f"team {bad}'s genomes hold nan, inf or magnitudes >= 1e150: the rollout plays them as "
+                      "non-finite actions, which score 0", RuntimeWarning, stacklevel=3)
 
 
 def world_class(target: str | None, trust: bool = True) -> type[World]:

@@ -14,6 +14,7 @@ import numpy as np
 
 from rovermarl.env.kernel.hooks import finite, move, rows, score_end, score_start, score_step, sense, stepwise  # hooks
 from rovermarl.env.kernel.math import FAST, sincos_all
+from rovermarl.env.kernel.reward import score
 from rovermarl.env.kernel.stages import act_flat, from_flat, to_flat
 from rovermarl.jit import njit
 
@@ -166,8 +167,9 @@ def returns_of(xy, w, out):
 
 @njit(**FAST)
 def env_step(xy, heading, actions, w, acc, value, obs):
-    """One step of E environments of the world ``w`` in one call, in place: move (hook ``move``), score (``score_step``
-    where ``stepwise``, then ``score_end``: the running value (E,) in ``value``), observe (``sense``) into obs (E, N, D).
+    """One step of E environments of the world ``w`` in one call, in place: move (hook ``move``), score
+    (``score_step`` where ``stepwise``, then ``score_end``: the running value (E,) in ``value``), observe (``sense``)
+    into obs (E, N, D).
     xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; ``acc`` from ``score_start(w, E)``
     (:func:`env_start`), carried from step to step of the episode."""
     n_ep, n = heading.shape
@@ -200,3 +202,14 @@ def env_step(xy, heading, actions, w, acc, value, obs):
 def env_start(w, n_ep):
     """The reward state of E environments before their first :func:`env_step` (the hook ``score_start``)."""
     return score_start(w, n_ep)
+
+
+@njit(**FAST)
+def evaluate_many(teams, xy0, heading0, w, scores):
+    """The scores (B,) of B teams (B, N, G) on the same initial conditions, in one call: :func:`rollout`, then the mean
+    of the returns in numpy's summation order (``reward.score``), per team, so each is what one rollout gives."""
+    returns = np.empty(heading0.shape[0])
+    no_xy, no_heading, no_final = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)), np.empty((0, 1, 2))
+    for b in range(teams.shape[0]):
+        rollout(teams[b], xy0, heading0, w, returns, no_xy, no_heading, no_final)
+        scores[b] = score(returns)
