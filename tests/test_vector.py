@@ -83,7 +83,7 @@ def test_the_gymnasium_view_flattens_the_agents():
     env = GymVectorEnv(num_envs=6, setup="solo")
     obs, _ = env.reset(seed=0)
     assert env.num_envs == 24 and obs.shape == (24, 39) and env.observation_space.contains(obs)
-    for t in range(15):
+    for _ in range(15):
         obs, rew, term, trunc, infos = env.step(env.action_space.sample())
         assert obs.shape == (24, 39) and rew.shape == term.shape == trunc.shape == (24,)
         assert env.observation_space.contains(obs)
