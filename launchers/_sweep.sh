@@ -12,9 +12,9 @@ OUT="${OUT:-outputs/paper}"
 PYTHON="${PYTHON:-python}"
 FIGURES="${FIGURES:-yes}"
 
-figures() {  # figures RESULTS_DIR PLOT_OPTION...: the study's figures, unless FIGURES=no
-    if [ "$FIGURES" != no ]; then
-        "$PYTHON" -m rovermarl.plot "$@"
+figures() {  # figures RESULTS_DIR PLOT_OPTION...: the study's figures into RESULTS_DIR/figures, unless FIGURES=no
+    if [ "$FIGURES" != no ]; then   # (plot draws exported results elsewhere unless told: here the study asks)
+        "$PYTHON" -m rovermarl.plot "$@" --out "$1/figures"
     fi
 }
 

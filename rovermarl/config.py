@@ -66,6 +66,16 @@ def sweepname(task_overrides) -> str:
     return "__".join(_readable(o) for o in _naming(task_overrides)) or "default"
 
 
+def job_dirs(argv: list[str], multirun: bool, out: Path) -> list[Path]:
+    """The output dir of each job of an invocation into ``out``, as Hydra names them: ``out`` itself, or for a
+    multirun ``out/<dirname of the job's overrides>`` (``hydra.sweep.subdir``), in Hydra's order."""
+    if not multirun:
+        return [Path(out)]
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    jobs = hydra_compat.split_sweep(OverridesParser.create().parse_overrides(argv))
+    return [Path(out) / dirname(job) for job in jobs]
+
+
 def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
                  config_dir: str | None = None) -> list[DictConfig]:
     """Compose the config of every job an invocation would launch (sweeps expanded as Hydra's basic

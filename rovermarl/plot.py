@@ -43,11 +43,12 @@ def _threshold(text: str) -> tuple[str, float]:
 
 
 def parser() -> argparse.ArgumentParser:
-    from rovermarl.analysis.draw import FORMATS  # matplotlib: imported when figures are drawn, not before
+    from rovermarl.analysis.stamp import FORMATS  # light: matplotlib is imported when figures are drawn
 
     p = _Parser(prog=PROG, description="Draw the paper's figures (PNG/PDF) from a sweep dir or one job dir.")
     p.add_argument("path", type=Path, help="sweep dir (from `rovermarl.train -m`) or one job dir")
-    p.add_argument("--out", type=Path, default=None, help="output dir (default: PATH/figures)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output dir (default: PATH/figures; for exported results outputs/figures/<name>)")
     p.add_argument("--threshold", type=_threshold, action="append", default=[], metavar="SETUP=VALUE",
                    help="score whose first reaching is marked by quartile lines (default "
                         + ", ".join(f"{setup}={level:g}" for setup, level in THRESHOLDS.items()) + ")")
@@ -71,16 +72,30 @@ def main(argv: Sequence[str] | None = None) -> None:
     if args.update_gen is not None and args.update_run is None:
         parser().error("--update-gen needs --update-run")
     logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
+    out = args.out if args.out is not None else default_out(args.path)
+    kwargs = {"thresholds": dict(args.threshold), "formats": args.formats, "update_run": args.update_run,
+              "update_gen": args.update_gen, "xscale": args.xscale, "x": args.x, "trust": args.trust}
+    from rovermarl.analysis.stamp import current_index
+    index = current_index(args.path, out, **kwargs)
+    if index is not None:
+        print(f"{PROG}: {len(index['figures'])} figures in {out}, up to date (their inputs did not change)")
+        return
     from rovermarl.analysis.figures import plot_sweep
     try:
-        index = plot_sweep(args.path, args.out, dict(args.threshold), args.formats, args.update_run,
-                           args.update_gen, log=log, xscale=args.xscale, x=args.x, trust=args.trust)
+        index = plot_sweep(args.path, out, log=log, **kwargs)
     except SweepError as e:
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
-    out = args.out if args.out is not None else args.path / "figures"
     n_files = sum(len(f["files"]) for f in index["figures"])
     print(f"{PROG}: {len(index['figures'])} figures ({n_files} files) in {out}")
+
+
+def default_out(path: Path) -> Path:
+    """Where figures go without ``--out``: ``PATH/figures`` for a sweep or job dir; for a results dir of
+    ``analysis export`` (committed data, ``compute.json`` at its top) ``outputs/figures/<its name>``, so that drawing
+    never rewrites results others cite."""
+    path = Path(path)
+    return Path("outputs") / "figures" / path.resolve().name if (path / "compute.json").is_file() else path / "figures"
 
 
 class PlotCallback(Callback):
@@ -88,7 +103,7 @@ class PlotCallback(Callback):
 
     Register it in ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``.
     Plotting problems are logged as a warning and never raised, so a finished sweep is never marked failed.
-    ``formats`` None: :data:`rovermarl.analysis.draw.FORMATS`. matplotlib is imported when the sweep ends, so
+    ``formats`` None: :data:`rovermarl.analysis.stamp.FORMATS`. matplotlib is imported when the sweep ends, so
     every job's start-up is spared it.
     """
 
@@ -99,12 +114,15 @@ class PlotCallback(Callback):
     def on_multirun_end(self, config, **kwargs) -> None:
         sweep = "?"
         try:
-            from rovermarl.analysis.draw import FORMATS
-            from rovermarl.analysis.figures import plot_sweep
+            from rovermarl.analysis.stamp import FORMATS, current_index
 
             sweep = Path(str(config.hydra.sweep.dir))
-            index = plot_sweep(sweep, thresholds=self.thresholds, formats=self.formats or list(FORMATS),
-                               trust=True)                      # the sweep this invocation ran
+            kwargs = {"thresholds": self.thresholds, "formats": self.formats or list(FORMATS), "trust": True}
+            if current_index(sweep, **kwargs) is not None:      # nothing they are drawn from changed
+                log.info("figures in %s are up to date", sweep / "figures")
+                return
+            from rovermarl.analysis.figures import plot_sweep
+            index = plot_sweep(sweep, **kwargs)                  # the sweep this invocation ran: trusted
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
             log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, e)

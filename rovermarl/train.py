@@ -37,12 +37,12 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 
 from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
-from rovermarl.config import compose_jobs, dirname, quote_numeric_options, sweepname  # noqa: E402
+from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
 from rovermarl.errors import ConfigError  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.resources import CONF_DIR  # noqa: E402
-from rovermarl.runner.job import run_job  # noqa: E402
+from rovermarl.runner.job import all_finished, run_job  # noqa: E402
 from rovermarl.runner.validate import validate  # noqa: E402
 
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
@@ -106,6 +106,7 @@ def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser,
     writable(key, Path(out))
     if not given:
         args.overrides = [*args.overrides, f"{key}='{out}'"]
+    args.out_dir = Path(out)
     return args, parser, cfgs
 
 
@@ -151,6 +152,14 @@ def connect(cfgs: list[DictConfig]) -> None:
     _check_shards(on_ray, int(ray.cluster_resources().get("CPU", 0)))
 
 
+def _all_finished(args, cfgs: list[DictConfig]) -> bool:
+    """Whether every job of the invocation is finished in its dir (:func:`rovermarl.runner.job.all_finished`)."""
+    if not cfgs:
+        return False
+    dirs = job_dirs([o for o in args.overrides if not o.startswith("hydra.")], args.multirun, args.out_dir)
+    return len(dirs) == len(cfgs) and all(all_finished(c, d) for c, d in zip(cfgs, dirs, strict=True))
+
+
 def _check_shards(cfgs: list[DictConfig], cpus: int) -> None:
     for c in cfgs:
         if c.parallel.get("ic_shards", 1) > cpus:      # each shard actor holds a CPU for the whole run
@@ -173,7 +182,8 @@ def main(argv: list[str] | None = None) -> None:
     try:
         args, parser, cfgs = check(argv)
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
-            connect(cfgs)
+            if not _all_finished(args, cfgs):                      # a relaunch with nothing to compute: no Ray
+                connect(cfgs)
             hydra_compat.run(args, parser, task, str(CONF_DIR))
     except ConfigError as e:
         stop = Stop(f"{PROG}: error: {e}", 2)

@@ -31,6 +31,7 @@ from rovermarl.analysis.draw import FORMATS, save
 from rovermarl.analysis.fig6 import fig_fig6, fig_switched
 from rovermarl.analysis.levels import threshold_for
 from rovermarl.analysis.results import load
+from rovermarl.analysis.stamp import inputs_stamp, options
 from rovermarl.analysis.sweep import Job, RunCurve, SweepError, fig6_job, find_jobs, load_job, soft_strict_pairs
 from rovermarl.record.outputs import write_json
 
@@ -117,8 +118,9 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
     Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
     """
     path = Path(path)
-    jobs, notes = find_jobs(path)
     out = Path(out) if out is not None else path / "figures"
+    stamp = inputs_stamp(path, out, **options(thresholds, formats, update_run, update_gen, xscale, x, trust))
+    jobs, notes = find_jobs(path)
     chosen = _load_update_run(update_run, update_gen, notes) if update_run is not None else None
     figures: list[dict] = []
 
@@ -158,7 +160,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
     if log is not None:
         for note in notes:
             log.info("note: %s", note)
-    index = {"source": str(path), "formats": list(formats), "figures": figures, "notes": notes,
+    index = {"source": str(path), "formats": list(formats), "figures": figures, "notes": notes, "inputs": stamp,
              "jobs": [{"dir": j.name, "setup": j.setup, "label": j.label,
                        "runs": len(j.runs), "finished": j.finished, "bandit": j.bandit} for j in jobs]}
     write_json(out / "index.json", index)

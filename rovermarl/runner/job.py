@@ -53,6 +53,34 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
         return _run_job(cfg, Path(job_dir), name, choices)
 
 
+def all_finished(cfg: DictConfig, job_dir: Path) -> bool:
+    """Whether launching ``cfg`` into ``job_dir`` computes nothing: every run finished under this identity (by this
+    code, under ``resume=strict``), its files verified, and the job summary current. A relaunch whose jobs are all
+    so starts no Ray (``rovermarl.train``)."""
+    if not cfg.resume:
+        return False
+    job_dir, key = Path(job_dir), config_hash(to_plain(cfg))
+    seeds = [cfg.seed + i for i in range(cfg.seeds)]
+    for seed in seeds:
+        out = run_dir(job_dir, seed)
+        meta = finished(out, key)
+        if meta is None or "heldout_score" not in meta or verify(out, meta) or _no_curve(out):
+            return False
+        if cfg.resume == "strict" and not same_code(meta.get("provenance")):
+            return False
+    try:
+        summary = json.loads((job_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(summary, dict) and _current(summary, seeds, cfg.levels)
+
+
+def _current(summary: dict, seeds: list[int], levels) -> bool:
+    """A job summary of exactly these runs and score levels, with held-out scores."""
+    return ("heldout_score" in summary and summary.get("seeds") == seeds and
+            set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in levels})
+
+
 def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) -> dict:
     job, job_dir = to_plain(cfg), Path(job_dir)
     remove_temp_files(job_dir)                                          # left by a launch that was killed
@@ -91,8 +119,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     summary_path = job_dir / "summary.json"
     if not todo and summary_path.exists():
         summary = _read_summary(summary_path, name)
-        if ("heldout_score" in summary and summary.get("seeds") == seeds and
-                set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in cfg.levels}):
+        if _current(summary, seeds, cfg.levels):
             return summary                                                 # else stale: rebuilt below
 
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
