@@ -42,6 +42,7 @@ from rovermarl.errors import ConfigError  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.resources import CONF_DIR  # noqa: E402
+from rovermarl.runner.compile import announce_and_warm  # noqa: E402
 from rovermarl.runner.job import all_finished, run_job  # noqa: E402
 from rovermarl.runner.validate import validate  # noqa: E402
 
@@ -152,6 +153,14 @@ def connect(cfgs: list[DictConfig]) -> None:
     _check_shards(on_ray, int(ray.cluster_resources().get("CPU", 0)))
 
 
+def _compile(cfgs: list[DictConfig]) -> None:
+    """A first run compiles the kernel: said before, done here once (Ray's workers then load it), left out of the
+    rates the jobs report (:mod:`rovermarl.runner.compile`)."""
+    seconds = announce_and_warm(cfgs, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr, flush=True))
+    if seconds is not None:
+        print(f"{PROG}: compiled in {seconds:.0f} s; cached for later runs", file=sys.stderr, flush=True)
+
+
 def _all_finished(args, cfgs: list[DictConfig]) -> bool:
     """Whether every job of the invocation is finished in its dir (:func:`rovermarl.runner.job.all_finished`)."""
     if not cfgs:
@@ -183,6 +192,7 @@ def main(argv: list[str] | None = None) -> None:
         args, parser, cfgs = check(argv)
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
             if not _all_finished(args, cfgs):                      # a relaunch with nothing to compute: no Ray
+                _compile(cfgs)
                 connect(cfgs)
             hydra_compat.run(args, parser, task, str(CONF_DIR))
     except ConfigError as e:

@@ -1,0 +1,41 @@
+"""Compile ahead: ``python -m rovermarl.warmup [OVERRIDE ...]`` compiles (numba) what a job of these overrides runs.
+
+numba compiles the kernel on first use and caches it (``__pycache__``, or ``NUMBA_CACHE_DIR``); a later run of the
+same code loads it. A first run on a fresh install or image therefore starts with a compile (about a minute or two on
+2 cores); ``rovermarl.train`` says so before it starts, does it once in the driver (so that Ray's workers load it),
+and leaves it out of the rates it reports. Run this module in an image build or before a cluster job to pay it ahead:
+
+    python -m rovermarl.warmup                        # the default job
+    python -m rovermarl.warmup setup=duo env.dtype=float32 env=obstacles hydra.searchpath=[file://examples/obstacles]
+
+It runs the job itself for 2 generations with 1 seed, serially, into a temporary dir (every compiled function the
+job uses, its recording included), and prints how long that took.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+
+from rovermarl.runner.compile import warm
+
+PROG = "rovermarl.warmup"
+
+
+def main(argv: list[str] | None = None) -> None:
+    from rovermarl.config import compose_jobs, quote_numeric_options
+    from rovermarl.errors import ConfigError
+    argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
+    try:
+        cfgs = compose_jobs(argv, multirun=any("," in a.partition("=")[2] for a in argv))
+    except ConfigError as e:
+        print(f"{PROG}: error: {e}", file=sys.stderr)
+        sys.exit(2)
+    t0 = time.perf_counter()
+    for cfg in cfgs:
+        warm(cfg)
+    print(f"{PROG}: {len(cfgs)} job(s) compiled and cached in {time.perf_counter() - t0:.1f} s")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,31 @@
+"""The first run says that it compiles, compiles once in the driver and reports rates without the compile; the
+next run says nothing of it. python -m rovermarl.warmup compiles ahead. Cold caches: slow tests (-m slow)."""
+
+import re
+
+import pytest
+
+from tests.conftest import run_cli
+
+pytestmark = pytest.mark.slow
+
+
+def test_a_cold_first_run_announces_the_compile_and_leaves_it_out_of_its_rate(tmp_path):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    args = ("generations=300", "seeds=2", "parallel=serial", "record=off")
+    first = run_cli(*args, f"hydra.run.dir={tmp_path / 'a'}", env=env, timeout=1200)
+    assert first.returncode == 0, first.stderr[-2000:]
+    assert "numba compiles the kernel" in first.stderr and re.search(r"compiled in \d+ s", first.stderr)
+    rate = float(re.search(r"\((\d+) team evals/s\)", first.stdout + first.stderr)[1])
+    assert rate > 200                                          # the compile (a minute or more) is not in it
+    second = run_cli(*args, f"hydra.run.dir={tmp_path / 'b'}", env=env, timeout=600)
+    assert second.returncode == 0 and "compiles" not in second.stderr
+
+
+def test_warmup_compiles_ahead(tmp_path):
+    env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    warm = run_cli("setup=duo", module="rovermarl.warmup", env=env, timeout=1200)
+    assert warm.returncode == 0 and "compiled and cached" in warm.stdout, warm.stderr[-2000:]
+    run = run_cli("setup=duo", "generations=20", "seeds=1", "parallel=serial", f"hydra.run.dir={tmp_path / 'r'}",
+                  env=env, timeout=600)
+    assert run.returncode == 0 and "compiles" not in run.stderr, run.stderr[-2000:]
