@@ -53,6 +53,6 @@ def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
             todo.append(cfg)
     if not todo:
         return None
-    log("first run of this code here: numba compiles the kernel this job uses (about 1-2 min on 2 cores, once; "
+    log("first run of this code here: numba compiles the kernel this job uses (about 45 s on 2 busy cores, once; "
         "later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
     return sum(warm(cfg) for cfg in todo)
