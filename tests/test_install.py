@@ -41,7 +41,7 @@ def test_every_package_is_listed_in_pyproject():
 
 
 def test_conf_dir_is_a_real_directory_shared_by_every_module():
-    from rovermarl.env import make as world          # make_world reads the packaged setups
+    from rovermarl.env import make as world  # make_world reads the packaged setups
 
     assert world.CONF_DIR == CONF_DIR
     assert CONF_DIR.is_absolute() and (CONF_DIR / "config.yaml").is_file()
