@@ -7,6 +7,7 @@
   (see :mod:`rovermarl.analysis.claims`).
 - ``selectors RESULTS_DIR [--against METHOD] [--x evals]``: the k-selector (or any method) comparison;
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
+- ``budget-geometry BUDGET_DIR GEOMETRY_DIR``: the budget and geometry section of docs/REPRODUCTION.md.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
 - ``baselines {export SWEEP_DIR RESULTS_DIR, done|report|figures RESULTS_DIR}``: the baselines study, CC-(1+1)-ES
@@ -59,6 +60,9 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("action", choices=("export", "done", "report", "figures"))
     b.add_argument("paths", type=Path, nargs="+",
                    help="export: SWEEP_DIR RESULTS_DIR; done, report, figures: RESULTS_DIR")
+    g = sub.add_parser("budget-geometry", help="the duo question along budget and geometry: the report section")
+    g.add_argument("budget", type=Path, help="results/budget")
+    g.add_argument("geometry", type=Path, help="results/geometry")
     return p
 
 
@@ -77,6 +81,9 @@ def main(argv=None) -> None:
             _readings(args.action, args.paths)
         elif args.command == "baselines":
             _baselines(args.action, args.paths)
+        elif args.command == "budget-geometry":
+            from rovermarl.analysis.budget_geometry import report
+            print(report(args.budget, args.geometry), end="")
         else:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against, args.x)

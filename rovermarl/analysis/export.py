@@ -99,6 +99,16 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
     return summary
 
 
+def _kept_compute(out: Path, replaced: set[str]) -> dict:
+    """The compute of ``out``'s jobs that this export leaves in place (from its ``compute.json``): a study exported
+    job by job, over several sweeps or sessions, keeps every job's compute."""
+    try:
+        jobs = json.loads((out / "compute.json").read_text()).get("jobs", {})
+    except (OSError, ValueError, AttributeError):
+        return {}
+    return {name: c for name, c in jobs.items() if name not in replaced and (out / name / "summary.json").is_file()}
+
+
 def export(sweep: Path, out: Path, generations: int | None = None, grid_points: int = GRID_POINTS,
            fig6: bool = True, log=print, trust: bool = False) -> dict:
     """Export every finished job of ``sweep`` (with ``generations`` generations, if given) into ``out``: its job
@@ -116,7 +126,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     rerun = fig6_job(jobs) if fig6 else None
     if rerun is not None and not trust:
         check_targets(rerun.config, str(rerun.path))
-    totals = {"jobs": {}, "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
+    totals = {"jobs": _kept_compute(out, {j.name for j in jobs}), "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
     named = {}
     for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
         group = [j for j in jobs if j.setup == setup]
@@ -126,10 +136,9 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
             label = named[job.name]
             summary = export_job(job, label, stage / job.name, grid_points)
             totals["jobs"][job.name] = summary["compute"]
-            totals["team_evals"] += summary["compute"]["team_evals"]
-            totals["wall_time_s"] += summary["compute"]["wall_time_s"]
-            totals["agent_steps"] += summary["compute"]["agent_steps"]
             log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
+        for key in ("team_evals", "agent_steps", "wall_time_s"):          # every job of out: exports add up
+            totals[key] = sum(c.get(key, 0) for c in totals["jobs"].values())
         write_json(stage / "compute.json", totals)
         if rerun is not None:
             info = export_fig6(rerun, stage / "fig6.npz", trust=trust)
