@@ -7,6 +7,8 @@
   (see :mod:`rovermarl.analysis.claims`).
 - ``selectors RESULTS_DIR [--against METHOD] [--x evals]``: the k-selector (or any method) comparison;
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
+- ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
+  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
 - ``budget-geometry BUDGET_DIR GEOMETRY_DIR``: the budget and geometry section of docs/REPRODUCTION.md.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
@@ -60,6 +62,10 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("action", choices=("export", "done", "report", "figures"))
     b.add_argument("paths", type=Path, nargs="+",
                    help="export: SWEEP_DIR RESULTS_DIR; done, report, figures: RESULTS_DIR")
+    h = sub.add_parser("heldout", help="add recomputed runs' held-out scores to committed compact results")
+    h.add_argument("action", choices=("merge",))
+    h.add_argument("sweep", type=Path, help="the sweep dir of launchers/heldout.sh, e.g. outputs/heldout/paper")
+    h.add_argument("results", type=Path, help="the compact results, e.g. results/paper")
     g = sub.add_parser("budget-geometry", help="the duo question along budget and geometry: the report section")
     g.add_argument("budget", type=Path, help="results/budget")
     g.add_argument("geometry", type=Path, help="results/geometry")
@@ -81,6 +87,9 @@ def main(argv=None) -> None:
             _readings(args.action, args.paths)
         elif args.command == "baselines":
             _baselines(args.action, args.paths)
+        elif args.command == "heldout":
+            from rovermarl.analysis.heldout import merge
+            merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
         elif args.command == "budget-geometry":
             from rovermarl.analysis.budget_geometry import report
             print(report(args.budget, args.geometry), end="")

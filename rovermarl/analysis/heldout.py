@@ -1,0 +1,48 @@
+"""Held-out scores for compact results committed before the feature (issue 33: results/paper, results/selectors).
+
+The compact results hold no final teams, so ``launchers/heldout.sh`` recomputes each job's runs (a run is a pure
+function of its config and seed) into a sweep dir, and :func:`merge` adds each run's held-out score to the job's
+committed ``summary.json`` (``heldout_score`` per seed, ``median_heldout_score``), after checking that every
+recomputed run ends at the committed final score, bit for bit: the curves do not change, only the held-out column
+is added. ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from rovermarl.analysis.results import ResultsError
+from rovermarl.record.outputs import write_json
+
+
+def merge(sweep: Path, results: Path, log=print) -> list[str]:
+    """Add the held-out scores of ``sweep``'s finished jobs to the same-named jobs of ``results``; returns the names
+    of the jobs updated. A job whose recomputed final scores differ from the committed ones is refused (an error
+    naming it and the first seed that differs), and nothing of it is written."""
+    updated = []
+    for path in sorted(Path(results).glob("*/summary.json")):
+        name = path.parent.name
+        done = Path(sweep) / name / "summary.json"
+        if not done.is_file():
+            continue
+        committed, recomputed = json.loads(path.read_text()), json.loads(done.read_text())
+        want, got = committed["final_score"], recomputed.get("final_score", {})
+        held = recomputed.get("heldout_score") or {}
+        if set(got) != set(want) or set(held) != set(want):
+            log(f"{name}: {len(got)} of {len(want)} runs recomputed: skipped")
+            continue
+        for seed, value in want.items():
+            if got[seed] != value:
+                raise ResultsError(f"{name}: seed {seed} ends at {got[seed]} recomputed, {value} committed: "
+                                   "not the same run; its held-out score is not added")
+        if committed.get("heldout_score") == held:
+            continue
+        committed["heldout_score"] = held
+        committed["median_heldout_score"] = float(np.median([held[s] for s in sorted(held, key=int)]))
+        write_json(path, committed)
+        updated.append(name)
+        log(f"{name}: held-out median {committed['median_heldout_score']:.4g} over {len(held)} runs added")
+    return updated
