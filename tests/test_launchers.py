@@ -82,7 +82,7 @@ def test_a_small_paper_study_writes_only_into_its_budget_dir(clone, tmp_path):
     assert len(commands) == 9                                      # 6 sweeps, export, plot, claims
     assert all(c.endswith("generations=200 seeds=2 hydra.sweep.dir=outputs/paper") for c in commands[:6])
     assert commands[6:] == [f"-m rovermarl.analysis export outputs/paper {results} --generations 200",
-                            f"-m rovermarl.plot {results} --format png --xscale log",
+                            f"-m rovermarl.plot {results} --format png --xscale log --out {results}/figures",
                             f"-m rovermarl.analysis claims {results}"]
     assert (clone / results / "claims.md").is_file() and (clone / results / "figures" / "curves_solo.png").is_file()
 
