@@ -55,7 +55,7 @@ def test_a_feasible_slow_job_states_its_estimate_and_starts(tmp_path):
         deadline, seen = time.monotonic() + 120, ""
         while time.monotonic() < deadline and "estimated about" not in seen:
             seen = proc.stdout.readline()
-        assert "policy.hidden=100000: estimated about 4.7 days on 1 CPUs" in seen, seen
+        assert "policy.hidden=100000: estimated about 32 h on 1 CPUs" in seen, seen
     finally:
         proc.kill()
         proc.wait()

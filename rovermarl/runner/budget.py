@@ -21,7 +21,7 @@ from rovermarl.policy import n_params
 from rovermarl.resources import packaged
 
 EVALUATION_LIMIT_S = 3600.0        # one team evaluation longer than this is refused
-NS_BASE, NS_PER_MAC, NS_PER_TARGET = 100.0, 0.35, 5.0   # per agent-step: fixed, per MLP multiply-add, per sensed target
+NS_BASE, NS_PER_MAC, NS_PER_TARGET = 30.0, 0.1, 1.5   # per agent-step: fixed, per MLP multiply-add, per sensed target
 SIGMA_LIMIT = 1e100                # a Gaussian mutation beyond this overflows genomes within a run
 _RUN, _ENV = packaged("config.yaml"), packaged("env/rovers.yaml")
 DEFAULTS = {"generations": _RUN["generations"], "seeds": _RUN["seeds"], "env.episodes": _ENV["episodes"],
