@@ -108,6 +108,7 @@ def study(tmp_path_factory):
     return tmp, env, proc
 
 
+@pytest.mark.slow
 def test_paper_launcher_writes_compact_results_figures_and_claims(study):
     tmp, _, proc = study
     sweep, results = tmp / "sweep", tmp / "results"

@@ -28,6 +28,7 @@ def study(tmp_path_factory):
     return tmp
 
 
+@pytest.mark.slow
 def test_every_method_gets_the_same_budget_of_team_evaluations(study):
     jobs = json.loads((study / "results" / "baselines.json").read_text())["jobs"]
     assert [j["method"] for j in jobs] == ["k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++"]

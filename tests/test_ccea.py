@@ -102,6 +102,7 @@ def test_bad_ccea_values_get_one_line(tmp_path):
         assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1 and key in out.stderr, out.stderr
 
 
+@pytest.mark.slow
 def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
     """The issue's command on Ray, interrupted (SIGINT) after its first checkpoint and relaunched, equals an
     uninterrupted serial run; figures and recordings are written."""

@@ -23,6 +23,7 @@ OVERRIDES = ["k=1,adaptive", "setup=duo", "generations=200", "seeds=3", "paralle
 
 
 @pytest.mark.skipif(cc.ray_cli() is None, reason="no `ray` command line")
+@pytest.mark.slow
 def test_cluster_sweep_equals_local(tmp_path):
     with cc.local_cluster(nodes=2, cpus=1, timeout=60) as (address, env, temp_dir):
         assert address.startswith("127.0.0.1:")

@@ -10,6 +10,8 @@ import shutil
 import subprocess
 import sys
 
+import pytest
+
 from tests.conftest import ROOT
 
 PROBE = '''from rovermarl.jit import njit
@@ -30,6 +32,7 @@ def _probe(tmp_path, env) -> str:
     return proc.stdout.split()
 
 
+@pytest.mark.slow
 def test_editing_a_callee_in_another_file_recompiles_the_caller(tmp_path):
     pkg = tmp_path / "copy"
     shutil.copytree(ROOT / "rovermarl", pkg / "rovermarl", ignore=shutil.ignore_patterns("__pycache__"))
@@ -58,6 +61,7 @@ print(repr(float(xy.sum())), sum(w.compiled.rollout.stats.cache_hits.values()))
 '''
 
 
+@pytest.mark.slow
 def test_editing_a_world_plugins_hook_recompiles_its_rollout(tmp_path):
     plug = tmp_path / "plug"
     plug.mkdir()

@@ -44,6 +44,7 @@ def _probe(choice: str) -> dict:
 
 
 @pytest.mark.skipif(not llvm.get_host_cpu_features().get("avx512f"), reason="needs a CPU with AVX-512")
+@pytest.mark.slow
 def test_512_bit_vectors_on_an_intel_target_and_the_same_bits():
     """Skylake-SP is tuned to prefer 256-bit vectors: with ROVERMARL_VECTORS=512 the kernel's sensing loop uses zmm
     registers, with off it does not, and rollouts give the same returns and trajectories bit for bit."""

@@ -86,6 +86,7 @@ def test_worker_sigkill_mid_run_is_retried_with_identical_results(ray_session, t
     _assert_same(_arrays(tmp_path / "serial"), _arrays(tmp_path / "ray"))
 
 
+@pytest.mark.slow
 def test_driver_sigkill_mid_sweep_then_relaunch_resumes(tmp_path):
     sweep = tmp_path / "sweep"
     argv = [sys.executable, "-m", "rovermarl.train", "-m", "k=1,2", "setup=duo", "generations=2000", "seeds=4",

@@ -24,6 +24,7 @@ def _descendants(pid: int) -> list[psutil.Process]:
         return []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig,code,what", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
 def test_a_signal_mid_sweep_stops_in_one_line_and_the_relaunch_resumes(tmp_path, sig, code, what):
     sweep = tmp_path / "sweep"
