@@ -258,7 +258,8 @@ class World(Starts, Scenario):
         if final_xy is not None and final_xy.shape != xy0.shape:
             raise ValueError(f"final_xy must have shape {xy0.shape}, got {final_xy.shape}")
         self._run(genomes, xy0, h0, layout, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
-        _warn_unless_finite(genomes[None], out[None])
+        if not out.any():                                   # the check costs 2-7 us: only where it can matter
+            _warn_unless_finite(genomes[None], out[None])
         return out
 
     def evaluate(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> float:
