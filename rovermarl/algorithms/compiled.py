@@ -91,25 +91,26 @@ def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_se
     while t < n:
         a, k = 0, fixed_k                                                 # 1. choose k (arm a)
         if fixed_k == 0:
-            out_probs[t] = probs
+            _put_row(out_probs, t, probs)
             a = draw_arm(probs, rng_sel.random())
             k = arms[a]
         chosen = np.zeros(1, np.int64) if homogeneous else pick_distinct(rng_mut, n_rovers, k)   # 2. k rovers
-        children[:] = parents
+        _put(children, parents)
         for i in chosen:                                                  # 3. mutate them
-            children[i] = mixed(parents[i], rng_mut, p_gaussian, sigma, m, low, high)
+            _put_row(children, i, mixed(parents[i], rng_mut, p_gaussian, sigma, m, low, high))
         for r in range(n_rovers):                                         #    the team the world sees
-            team[r] = children[0] if homogeneous else children[r]
+            _put_row(team, r, children[0] if homogeneous else children[r])
         rollout(team, xy0, h0, world, returns, no_xy, no_heading, final_xy)
         f_child = score(returns)                                          # 4. evaluate the team
         mutated[:] = homogeneous
-        mutated[chosen] = True
+        for i in chosen:
+            mutated[i] = True
         out_switched[t] = switched(final_xy, poi_xy, radius, parent_poi, mutated)
         accepted = keeps(f_child, f_parent, strict)                       # 5. all k children or none
         if fixed_k == 0:                                                  # 6. reward the selector
             exp3_update(log_w, probs, a, bandit_reward(f_child, f_parent, gain, f_max), gamma, probs)
         if accepted:
-            parents[:] = children
+            _put(parents, children)
             f_parent = f_child
         out_k[t], out_accepted[t], out_child[t], out_score[t] = k, accepted, f_child, f_parent
         t += 1
@@ -117,3 +118,18 @@ def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_se
             return t, f_parent
     return t, f_parent
 
+
+
+@njit(cache=True)
+def _put_row(dst, i, src):
+    """dst[i] = src (dst (R, P), src (P,)), element by element: numba's slice assignment compiles a shape check with
+    its message, about 1.5 s of a cold start per call site."""
+    for j in range(src.shape[0]):
+        dst[i, j] = src[j]
+
+
+@njit(cache=True)
+def _put(dst, src):
+    """dst[:] = src for two (R, P) arrays, as :func:`_put_row`."""
+    for i in range(src.shape[0]):
+        _put_row(dst, i, src[i])

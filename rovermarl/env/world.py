@@ -294,8 +294,9 @@ class World(Starts, Scenario):
         return (*self._in_dtype(xy0, h0), self.kernel_for(layout))
 
     def _in_dtype(self, *arrays):
-        """Checked float64 arrays in ``env.dtype``, the kernel's precision (no copy for float64)."""
-        return tuple(a.astype(self._float, copy=False) for a in arrays)
+        """Checked float64 arrays in ``env.dtype``, the kernel's precision, writeable (copied only when not: a read-only
+        array, such as one Ray delivers, would make numba compile the whole rollout a second time)."""
+        return tuple(np.require(a, self._float, ("C", "W")) for a in arrays)
 
     def _run(self, genomes, xy0, h0, layout, returns, traj_xy, traj_heading, final_xy=None):
         self.compiled.rollout(*self._in_dtype(genomes, xy0, h0), self.kernel_for(layout), returns, traj_xy,

@@ -86,8 +86,9 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     to_flat(xy0[:, :, 1], y)
     to_flat(heading0, heading)
     if record:
-        traj_xy[:, 0] = xy0
-        traj_heading[:, 0] = heading0
+        from_flat(x, traj_xy[:, 0, :, 0])
+        from_flat(y, traj_xy[:, 0, :, 1])
+        from_flat(heading, traj_heading[:, 0])
     sincos_all(heading, sin_h, cos_h)
     sums_finite = finite(genomes, w)                   # with each step's ranged sensing: the MLP's sums are finite
     xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
@@ -105,8 +106,9 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
             score_step(w, x, y, xy, acc)
     from_flat(x, xy[:, :, 0])
     from_flat(y, xy[:, :, 1])
-    if final_xy.shape[0] == n_ep:
-        final_xy[:] = xy
+    if final_xy.shape[0] == n_ep:                      # (no slice assignment: its shape check compiles for seconds)
+        from_flat(x, final_xy[:, :, 0])
+        from_flat(y, final_xy[:, :, 1])
     score_end(w, xy, acc, returns)
 
 

@@ -144,10 +144,9 @@ def settle(mode, steps, coupling, value, peak, acc, out):
     whose peak (E, P) reached its coupling; ``best_step`` the best step return acc (E,); ``mean_step`` acc / steps."""
     if mode == ANY_STEP:
         payout(peak, coupling, value, out)
-    elif mode == BEST_STEP:
-        out[:] = acc
-    else:
-        out[:] = acc / steps
+    else:                                              # element by element: a slice assignment compiles for seconds
+        for e in range(out.shape[0]):
+            out[e] = acc[e] if mode == BEST_STEP else acc[e] / steps
 
 
 @njit(cache=True)

@@ -180,9 +180,11 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
     return False
 
 
-@njit(inline="always", **FAST)
+@njit(**FAST)
 def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, ranged):
-    """The loops of :func:`sense_flat`; ``ranged`` (a constant at each call) goes to :func:`bearing`."""
+    """The loops of :func:`sense_flat`; ``ranged`` goes to :func:`bearing`. Not inlined by numba (LLVM still may):
+    numba's inlining of it, twice, took 9 of a cold start's 40 s of compiling; the kernel's speed is the same within
+    the noise of ``benchmarks/throughput.py``."""
     ne = x.shape[0]
     p = poi_xy.shape[0]
     inv_pi = like(sensor_range, 1.0 / math.pi)
