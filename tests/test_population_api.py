@@ -59,3 +59,19 @@ def test_the_cma_example_optimises_a_team():
     out = optimise("solo", evaluations=1500, seed=0)
     assert out["evaluations"] >= 1500 and out["best_score"] >= 1.0        # a zero or random team scores ~0
     assert 0 <= out["heldout_score"] <= 4
+
+
+def test_read_only_inputs_reuse_the_compiled_rollout():
+    """Arrays that Ray delivers are read-only; numba would compile the rollout again for them (20 s per worker)."""
+    world = make_world("solo")
+    ic = world.initial_conditions(seed=0, n=world.episodes)
+    team = np.random.default_rng(0).normal(size=(world.n_rovers, world.n_params))
+    want = world.evaluate(team, ic), world.evaluate_many(team[None], ic)
+    before = len(world.compiled.rollout.signatures), len(world.compiled.evaluate_many.signatures)
+    frozen = [a.copy() for a in (team, ic[0], ic[1])]
+    for a in frozen:
+        a.flags.writeable = False
+    ic_frozen = type(ic)(frozen[1], frozen[2], *ic[2:])
+    assert world.evaluate(frozen[0], ic_frozen) == want[0]
+    assert world.evaluate_many(frozen[0][None], ic_frozen) == want[1]
+    assert (len(world.compiled.rollout.signatures), len(world.compiled.evaluate_many.signatures)) == before
