@@ -153,12 +153,26 @@ def connect(cfgs: list[DictConfig]) -> None:
     _check_shards(on_ray, int(ray.cluster_resources().get("CPU", 0)))
 
 
-def _compile(cfgs: list[DictConfig]) -> None:
+def _compile_while_ray_starts(cfgs: list[DictConfig]) -> None:
     """A first run compiles the kernel: said before, done here once (Ray's workers then load it), left out of the
-    rates the jobs report (:mod:`rovermarl.runner.compile`)."""
-    seconds = announce_and_warm(cfgs, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr, flush=True))
-    if seconds is not None:
-        print(f"{PROG}: compiled in {seconds:.0f} s; cached for later runs", file=sys.stderr, flush=True)
+    rates the jobs report (:mod:`rovermarl.runner.compile`). It compiles on one core in a thread while Ray starts on
+    the other (a daemon: a failed start or a signal does not wait for it)."""
+    failed: list[BaseException] = []
+
+    def compile_() -> None:
+        try:
+            seconds = announce_and_warm(cfgs, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr, flush=True))
+            if seconds is not None:
+                print(f"{PROG}: compiled in {seconds:.0f} s; cached for later runs", file=sys.stderr, flush=True)
+        except BaseException as e:  # re-raised in the main thread
+            failed.append(e)
+
+    thread = threading.Thread(target=compile_, name="rovermarl-compile", daemon=True)
+    thread.start()
+    connect(cfgs)
+    thread.join()
+    if failed:
+        raise failed[0]
 
 
 def _all_finished(args, cfgs: list[DictConfig]) -> bool:
@@ -192,8 +206,7 @@ def main(argv: list[str] | None = None) -> None:
         args, parser, cfgs = check(argv)
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
             if not _all_finished(args, cfgs):                      # a relaunch with nothing to compute: no Ray
-                _compile(cfgs)
-                connect(cfgs)
+                _compile_while_ray_starts(cfgs)
             hydra_compat.run(args, parser, task, str(CONF_DIR))
     except ConfigError as e:
         stop = Stop(f"{PROG}: error: {e}", 2)

@@ -98,3 +98,28 @@ def test_a_failed_write_ends_the_launch_in_one_line_with_exit_1(tmp_path, point,
     assert lines[0].startswith("rovermarl.train: error: ") and f"cannot write {sweep}" in lines[0]
     assert f"/{point}: No space left on device; fix it and relaunch the same command to resume" in lines[0]
     assert not _leftovers(sweep)
+
+
+def test_the_warm_ups_faults_off_leaves_other_threads_and_the_environment_alone(tmp_path, monkeypatch):
+    """The compile warm-up runs in a thread while Ray starts: Ray's processes must still get ROVERMARL_FAULT."""
+    import threading
+
+    from rovermarl.record.outputs import FAULT, fault, faults_off
+    monkeypatch.setenv(FAULT, "run.json:eio")
+    seen = []
+    with faults_off():
+        fault(tmp_path / "run.json")                               # off in this thread
+        assert os.environ[FAULT] == "run.json:eio"
+        other = threading.Thread(target=lambda: seen.append(_raises(lambda: fault(tmp_path / "run.json"))))
+        other.start()
+        other.join()
+    assert seen == [True]
+    assert _raises(lambda: fault(tmp_path / "run.json"))           # on again after it
+
+
+def _raises(f) -> bool:
+    try:
+        f()
+    except OSError:
+        return True
+    return False

@@ -19,6 +19,7 @@ Job dir layout::
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import errno
 import hashlib
 import json
@@ -59,6 +60,18 @@ def atomic_open(path: Path, mode: str = "wb"):
 
 
 FAULT = "ROVERMARL_FAULT"       # the fault-injection suite's hook (tests/test_faults.py): "<file name>:<action>"
+_NO_FAULTS = contextvars.ContextVar("rovermarl_no_faults", default=False)
+
+
+@contextlib.contextmanager
+def faults_off():
+    """No injected fault in this thread (the compile warm-up's job), whatever ``ROVERMARL_FAULT`` says; the environment
+    is left alone, so processes started meanwhile (Ray's) still get it."""
+    token = _NO_FAULTS.set(True)
+    try:
+        yield
+    finally:
+        _NO_FAULTS.reset(token)
 
 
 def fault(path: Path) -> None:
@@ -66,7 +79,7 @@ def fault(path: Path) -> None:
     that file (its temp copy is complete, not yet renamed) ends the process (``kill``: SIGKILL) or fails as the
     disk would (``enospc``, ``eio``: OSError). Unset (always, outside the tests), it does nothing."""
     spec = os.environ.get(FAULT)
-    if not spec:
+    if not spec or _NO_FAULTS.get():
         return
     name, _, action = spec.rpartition(":")
     if name != Path(path).name:

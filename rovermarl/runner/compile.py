@@ -4,7 +4,6 @@ request."""
 
 from __future__ import annotations
 
-import os
 import tempfile
 import time
 from pathlib import Path
@@ -12,7 +11,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl.env import World
-from rovermarl.record.outputs import FAULT
+from rovermarl.record.outputs import faults_off
 from rovermarl.runner.job import run_job
 
 
@@ -32,13 +31,8 @@ def warm(cfg: DictConfig) -> float:
     tiny = OmegaConf.merge(cfg, {"generations": 2, "seeds": 1, "parallel": {"backend": "serial"},
                                  "checkpoint": {"every": 2}})
     t0 = time.perf_counter()
-    fault = os.environ.pop(FAULT, None)                 # a fault injected into the job is not the warm-up's
-    try:
-        with tempfile.TemporaryDirectory(prefix="rovermarl-warmup-") as d:
-            run_job(tiny, Path(d) / "job", name="warmup")
-    finally:
-        if fault is not None:
-            os.environ[FAULT] = fault
+    with faults_off(), tempfile.TemporaryDirectory(prefix="rovermarl-warmup-") as d:   # a fault injected into the
+        run_job(tiny, Path(d) / "job", name="warmup")                                      # job is not the warm-up's
     return time.perf_counter() - t0
 
 
@@ -53,6 +47,6 @@ def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
             todo.append(cfg)
     if not todo:
         return None
-    log("first run of this code here: numba compiles the kernel this job uses (about 45 s on 2 busy cores, once; "
+    log("first run of this code here: numba compiles the kernel this job uses (about 30 s on an idle core, once; "
         "later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
     return sum(warm(cfg) for cfg in todo)
