@@ -91,3 +91,25 @@ def test_the_baselines_sentences_hold():
     assert "only method that gets past" not in text and "most lose it" not in text and "hold up best" not in text
     assert "Fisher p=0.22" in text and "7 of 16 end at 4, the other 9 at 0 (5 runs) or 1 (4 runs)" in text
     assert "only method that passes" not in readme and "hold up best" not in readme
+
+
+def test_the_selectors_held_out_sentence_holds_to_the_summaries():
+    sel = ROOT / "results/selectors"
+    final, held = {}, {}
+    for summary in sel.glob("*/summary.json"):
+        s = json.loads(summary.read_text())
+        keys = dict(kv.split("=", 1) for kv in summary.parent.name.split(","))
+        job = (keys["setup"], keys.get("k", "homogeneous") if "team" not in keys else "homogeneous")
+        final[job] = np.median(list(s["final_score"].values()))
+        held[job] = s["median_heldout_score"]
+    assert len(held) == 33
+    drops = [final[j] - held[j] for j in held]
+    assert round(min(drops), 1) == 0.4 and round(max(drops), 2) == 1.04     # "0.4-1.04 below its final median"
+    for setup, best in (("solo", 3.27), ("duo", 3.17), ("trio", 3.38)):
+        mine = {m: h for (s, m), h in held.items() if s == setup}
+        assert max(mine, key=mine.get) == "schedule" and round(mine["schedule"], 2) == best
+        lowest = sorted(mine, key=mine.get)
+        assert lowest[0] == ("homogeneous" if setup == "solo" else "4") and lowest[1 if setup == "solo" else 0] == "4"
+    assert round(held[("solo", "homogeneous")], 2) == 2.37
+    text = " ".join((ROOT / "docs/SELECTORS.md").read_text().split())
+    assert "(solo 3.27, duo 3.17, trio 3.38)" in text and "lowest but for the homogeneous team on solo (2.37)" in text
