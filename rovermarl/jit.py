@@ -15,13 +15,37 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import sys
 from pathlib import Path
 
-from numba import njit
+from numba import njit, typeof
 from numba.core import caching, config
 
-__all__ = ["njit", "sources_stamp"]
+__all__ = ["njit", "say_if_cold", "sources_stamp"]
 PACKAGE = Path(__file__).resolve().parent
+_SAID = []                        # non-empty once this process has said that it compiles (or train said it)
+
+
+def say_if_cold(dispatcher, args: tuple, what: str) -> None:
+    """Before a call of ``dispatcher(*args)``: if neither this process nor numba's cache has it for these argument
+    types, say once per process on stderr that numba compiles ``what`` now. Costs one attribute read once compiled."""
+    if _SAID or dispatcher.overloads:
+        return
+    try:
+        sig = tuple(typeof(a) for a in args)
+        cached = any(tuple(key[0]) == sig for key in dispatcher._cache._cache_file._load_index())
+    except Exception:  # numba's internals moved: say nothing rather than fail the call
+        return
+    if not cached:
+        said()
+        print(f"rovermarl: numba compiles {what} for this machine now (about 20 s on an idle core, once; later "
+              "processes load it from the cache; python -m rovermarl.warmup compiles ahead)", file=sys.stderr,
+              flush=True)
+
+
+def said() -> None:
+    """Mark the compile as announced in this process (``rovermarl.train`` says it its own way)."""
+    _SAID.append(True)
 
 
 @functools.cache

@@ -68,6 +68,7 @@ except ModuleNotFoundError as e:                       # an optional extra: say 
                               name=e.name) from None
 
 from rovermarl.env import World, kernel, make_world
+from rovermarl.jit import say_if_cold
 
 ACTION_LOW, ACTION_HIGH = -1.0, 1.0
 ACTION_RULE = f"an action is 2 finite real numbers (speed, turn), clipped to [{ACTION_LOW:g}, {ACTION_HIGH:g}]"
@@ -170,6 +171,7 @@ class RoverParallelEnv(ParallelEnv):
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
                 a[0, i] = self.check_action(agent, actions[agent])
+        say_if_cold(w.compiled.step, (self.xy, self.heading, a, self._k), "the environment's functions")
         w.compiled.step(self.xy, self.heading, a, self._k)                  # the rollout's move hook
         self.t += 1
         self.path[self.t] = self.xy[0]
@@ -218,6 +220,7 @@ class RoverParallelEnv(ParallelEnv):
     def _observe(self) -> dict:
         w = self.world
         obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
+        say_if_cold(w.compiled.observe, (self.xy, self.heading, self._k, obs), "the environment's functions")
         w.compiled.observe(self.xy, self.heading, self._k, obs)                 # the rollout's sense hook
         if self.time_feature:
             obs = np.concatenate([obs, np.full((1, w.n_rovers, 1), self.t / w.steps, self._f)], axis=2)

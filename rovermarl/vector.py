@@ -35,6 +35,7 @@ from __future__ import annotations
 import numpy as np
 
 from rovermarl.env import World, make_world
+from rovermarl.jit import say_if_cold
 
 
 class VectorEnv:
@@ -77,6 +78,7 @@ class VectorEnv:
         self.value = np.zeros(b)
         self.t = 0
         obs = np.empty((b, self.n_agents, w.obs_dim), self.dtype)
+        say_if_cold(self._compiled.observe, (self.xy, self.heading, self._k, obs), "the environment's functions")
         self._compiled.observe(self.xy, self.heading, self._k, obs)
         return self._with_time(obs), {"step": 0}
 
@@ -93,7 +95,9 @@ class VectorEnv:
         w, b, n = self.world, self.num_envs, self.n_agents
         before = self.value.copy()
         obs = np.empty((b, n, w.obs_dim), self.dtype)
-        self._compiled.env_step(self.xy, self.heading, a, self._k, self._acc, self.value, obs)
+        args = (self.xy, self.heading, a, self._k, self._acc, self.value, obs)
+        say_if_cold(self._compiled.env_step, args, "the environment's functions")
+        self._compiled.env_step(*args)
         self.t += 1
         done = self.t == w.steps
         if self._compiled.stepwise(self._k):

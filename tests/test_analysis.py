@@ -133,6 +133,7 @@ def test_paper_launcher_writes_compact_results_figures_and_claims(study):
     assert {"solo k=1", "duo k=1", "duo k=1 strict"} <= set(data["C8"])
 
 
+@pytest.mark.slow
 def test_exported_curves_equal_the_sweep(study):
     tmp, _, _ = study
     job = "generations=300,k=adaptive,setup=duo"
@@ -146,6 +147,7 @@ def test_exported_curves_equal_the_sweep(study):
             np.testing.assert_allclose(probs[i], full["probs"][np.minimum(grid, 299)], rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_relaunch_recomputes_only_the_unfinished_run(study):
     tmp, env, _ = study
     job = tmp / "sweep" / "generations=300,k=2,selection=strict,setup=duo"
@@ -216,6 +218,7 @@ def test_claims_on_a_partial_results_dir_names_what_is_missing_in_one_line(tmp_p
 
 
 # ---- the k-selector benchmark ----------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_selectors_launcher_runs_every_selector_and_writes_the_table(tmp_path):
     env = {**os.environ, "GENERATIONS": "40", "SEEDS": "2", "OUT": str(tmp_path / "sweep"),
            "RESULTS": str(tmp_path / "results"), "PYTHON": sys.executable, "FIGURES": "no"}   # paper.sh's test draws

@@ -43,6 +43,7 @@ def test_every_method_gets_the_same_budget_of_team_evaluations(study):
                 assert evals is None or (evals - 1) % j["evals_per_generation"] == 0
 
 
+@pytest.mark.slow
 def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
     text, numbers = baselines.report(study / "results")
     rows = [line for line in text.splitlines() if line.startswith("| ") and "---" not in line]
@@ -52,6 +53,7 @@ def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
     assert (study / "results" / "baselines.md").read_text() == text
 
 
+@pytest.mark.slow
 def test_the_figures_put_team_evaluations_on_the_x_axis(study):
     index = json.loads((study / "sweep" / "figures" / "index.json").read_text())   # the end-of-sweep callback's
     curves = [f for f in index["figures"] if f["kind"] == "curves"]
@@ -67,6 +69,7 @@ def test_the_figures_put_team_evaluations_on_the_x_axis(study):
     assert (study / "results" / "figures" / "baselines_duo.png").stat().st_size > 10_000
 
 
+@pytest.mark.slow
 def test_a_study_resumes_from_its_committed_results_without_its_sweep_dir(study, tmp_path):
     """A new session has the committed results but not outputs/: the jobs there are skipped, the others run, and
     the report then holds both."""
@@ -91,6 +94,7 @@ def test_a_study_resumes_from_its_committed_results_without_its_sweep_dir(study,
     assert "In progress: 6 of 18 jobs; to come: k=1 on solo," in baselines.report(results)[0]   # duo is whole
 
 
+@pytest.mark.slow
 def test_a_sweep_at_another_budget_does_not_join_the_results(study, tmp_path):
     data = json.loads((study / "results" / "baselines.json").read_text())
     data["jobs"] = [j for j in data["jobs"] if j["method"] != "k=1"]
@@ -103,6 +107,7 @@ def test_a_sweep_at_another_budget_does_not_join_the_results(study, tmp_path):
     assert json.loads((tmp_path / "baselines.json").read_text()) == data            # left as it was
 
 
+@pytest.mark.slow
 def test_a_partial_study_says_which_jobs_are_to_come(study, tmp_path):
     data = json.loads((study / "results" / "baselines.json").read_text())
     (tmp_path / "baselines.json").write_text(json.dumps(data))
@@ -110,6 +115,7 @@ def test_a_partial_study_says_which_jobs_are_to_come(study, tmp_path):
     assert "In progress: 6 of 18 jobs; to come: k=1 on solo, k=2 on solo," in text and "ccea D++ on trio." in text
 
 
+@pytest.mark.slow
 def test_the_method_comparison_measures_in_team_evaluations(study):
     from rovermarl.analysis.claims import selectors
     from rovermarl.analysis.export import export

@@ -3,11 +3,13 @@
 import json
 
 import numpy as np
+import pytest
 
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg, run_cli
 
 
+@pytest.mark.slow
 def test_paper_sweep_cli_tiny_budget(tmp_path):
     sweep = tmp_path / "sweep"
     proc = run_cli("-m", "k=1,2,4,adaptive", "setup=solo,duo", "generations=20", "seeds=2",

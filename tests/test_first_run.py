@@ -29,3 +29,22 @@ def test_warmup_compiles_ahead(tmp_path):
     run = run_cli("setup=duo", "generations=20", "seeds=1", "parallel=serial", f"hydra.run.dir={tmp_path / 'r'}",
                   env=env, timeout=600)
     assert run.returncode == 0 and "compiles" not in run.stderr, run.stderr[-2000:]
+
+
+def test_the_python_api_says_once_that_it_compiles(tmp_path):
+    """A user of World.evaluate, the vector env or the PettingZoo env does not wait in silence for numba."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import numpy as np; from rovermarl.env import make_world; from rovermarl.vector import VectorEnv; "
+            "w = make_world('solo'); ic = w.initial_conditions(seed=0, n=w.episodes); "
+            "t = np.zeros((w.n_rovers, w.n_params)); w.evaluate(t, ic); w.evaluate_many(t[None], ic); "
+            "v = VectorEnv(num_envs=2, world=w); v.reset(seed=0); v.step(np.zeros((2, w.n_rovers, 2)))")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    said = []
+    for _ in range(2):
+        proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1200)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        said.append(proc.stderr.count("numba compiles"))
+    assert said == [1, 0]                                      # once when cold, never from the cache

@@ -8,6 +8,7 @@ are compared within a few ulp (numpy's ``exp`` depends on the CPU; see ``tests/g
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from tests.conftest import ROOT
 from tests.golden_jobs import (
@@ -24,6 +25,7 @@ from tests.golden_jobs import (
 )
 
 
+@pytest.mark.slow
 def test_cli_jobs_bit_identical_to_4c4ae3c(tmp_path):
     golden = load_golden()
     now = {g: " ".join(command(g, Path("<out>"))[1:]) for g in GROUPS}

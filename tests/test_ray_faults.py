@@ -25,6 +25,7 @@ def _descendants(pid: int) -> list[psutil.Process]:
         return []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("victim", ["gcs_server", "raylet"])
 def test_a_dead_ray_stops_the_driver_in_one_line(tmp_path, victim):
     argv = [sys.executable, "-m", "rovermarl.train", "-m", "k=1,2", "setup=duo", "generations=200000", "seeds=2",

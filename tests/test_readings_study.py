@@ -75,6 +75,7 @@ def _launch(env, cwd):
                             stderr=subprocess.PIPE, text=True, start_new_session=True)
 
 
+@pytest.mark.slow
 def test_launcher_runs_as_documented_and_resumes_after_an_interruption(tmp_path):
     out, results = tmp_path / "sweep", tmp_path / "results"
     env = {**os.environ, "GENERATIONS": "30", "SEEDS": "2", "OUT": str(out), "RESULTS": str(results),

@@ -19,6 +19,7 @@ def ray_tmpdir():
         yield Path(d)
 
 
+@pytest.mark.slow
 def test_a_finished_sweep_relaunches_without_ray_or_drawing(tmp_path, ray_tmpdir):
     sweep = tmp_path / "sw"
     first = run_cli(*SWEEP, "seeds=2", f"hydra.sweep.dir={sweep}", env={"RAY_TMPDIR": str(ray_tmpdir)}, timeout=900)

@@ -33,6 +33,7 @@ def tmpfs(tmp_path):
         subprocess.run(["umount", str(where)], capture_output=True)
 
 
+@pytest.mark.slow
 def test_a_full_disk_stops_in_one_line_and_the_relaunch_completes(tmpfs, tmp_path):
     disk = tmpfs("3m")
     sweep = disk / "sweep"

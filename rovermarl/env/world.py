@@ -28,6 +28,7 @@ from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.env.scenario import Scenario
 from rovermarl.env.starts import Starts
+from rovermarl.jit import say_if_cold
 
 _NO_XY = np.empty((0, 1, 1, 2))
 _NO_HEADING = np.empty((0, 1, 1))
@@ -274,7 +275,9 @@ class World(Starts, Scenario):
             raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
         xy0, h0, layout = self._batch(*ic)
         scores = np.empty(teams.shape[0])
-        self.compiled.evaluate_many(*self._in_dtype(teams, xy0, h0), self.kernel_for(layout), scores)
+        args = (*self._in_dtype(teams, xy0, h0), self.kernel_for(layout), scores)
+        say_if_cold(self.compiled.evaluate_many, args, "the world's batched rollout")
+        self.compiled.evaluate_many(*args)
         _warn_unless_finite(teams, scores)
         return scores
 
@@ -299,8 +302,10 @@ class World(Starts, Scenario):
         return tuple(np.require(a, self._float, ("C", "W")) for a in arrays)
 
     def _run(self, genomes, xy0, h0, layout, returns, traj_xy, traj_heading, final_xy=None):
-        self.compiled.rollout(*self._in_dtype(genomes, xy0, h0), self.kernel_for(layout), returns, traj_xy,
-                              traj_heading, _NO_FINAL if final_xy is None else final_xy)
+        args = (*self._in_dtype(genomes, xy0, h0), self.kernel_for(layout), returns, traj_xy, traj_heading,
+                _NO_FINAL if final_xy is None else final_xy)
+        say_if_cold(self.compiled.rollout, args, "the world's rollout")
+        self.compiled.rollout(*args)
 
     def _team(self, genomes):
         genomes = np.ascontiguousarray(genomes, dtype=np.float64)

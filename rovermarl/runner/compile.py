@@ -11,6 +11,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl.env import World
+from rovermarl.jit import said
 from rovermarl.record.outputs import faults_off
 from rovermarl.runner.job import run_job
 
@@ -47,6 +48,7 @@ def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
             todo.append(cfg)
     if not todo:
         return None
+    said()                                             # the world's own notice would repeat this one
     log("first run of this code here: numba compiles the kernel this job uses (about 30 s on an idle core, once; "
         "later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
     return sum(warm(cfg) for cfg in todo)
