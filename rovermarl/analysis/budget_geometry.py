@@ -85,8 +85,8 @@ def report(budget: Path, geometry: Path) -> str:
     named = ", ".join(f"`obs_radius={r}, poi_distance={d}`" for r, d in worlds) or "**none of those run**"
     lines += ["", "Which world gives the paper's duo picture (k=1 and k=2 medians at 5 or more, some run at 6, none "
               f"above 6) while solo k=1 still ends at 4 in every run: {named}.",
-              "", f"Budget study so far: {', '.join(methods) or 'no job'} at {budgets} generations"
-              + (f"; still to run: {', '.join(missing)}" if missing else "") + "."]
+              "", f"Budget study{' so far' if missing else ''}: {', '.join(methods) or 'no job'} at {budgets} "
+              "generations" + (f"; still to run: {', '.join(missing)}" if missing else " (complete)") + "."]
     for study, path in (("budget", budget), ("geometry", geometry)):
         c = _compute(path)
         lines.append(f"Compute, {study}: {c['team_evals']:,} team evaluations, {c['wall_time_s'] / 3600:.2f} h "
