@@ -15,7 +15,7 @@ import numpy as np
 from rovermarl.env.kernel.hooks import finite, move, rows, score_end, score_start, score_step, sense, stepwise  # hooks
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.reward import score
-from rovermarl.env.kernel.stages import act_flat, from_flat, to_flat
+from rovermarl.env.kernel.stages import act_flat, flat_pose, flat_state, from_flat, pose_back, to_flat
 from rovermarl.jit import njit
 
 
@@ -120,14 +120,9 @@ def observe(xy, heading, w, out):
     precision of xy."""
     n_ep, n = heading.shape
     ne = n * n_ep
-    state = np.empty((5, ne), dtype=xy.dtype)
-    x, y, h, sin_h, cos_h = state[0], state[1], state[2], state[3], state[4]
-    to_flat(xy[:, :, 0], x)
-    to_flat(xy[:, :, 1], y)
-    to_flat(heading, h)
-    sincos_all(h, sin_h, cos_h)
+    state = flat_pose(xy, heading, 5)
     obs = np.empty(w.obs_dim * ne, dtype=xy.dtype)
-    sense(x, y, sin_h, cos_h, n, w, obs)
+    sense(state[0], state[1], state[3], state[4], n, w, obs)
     for k in range(w.obs_dim):
         from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
 
@@ -135,20 +130,16 @@ def observe(xy, heading, w, out):
 @njit(**FAST)
 def step(xy, heading, actions, w):
     """One step of the hook ``move``, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2) (a0, a1 in [-1, 1])."""
-    n_ep, n = heading.shape
-    ne = n * n_ep
-    state = np.empty((7, ne), dtype=xy.dtype)
-    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    to_flat(xy[:, :, 0], x)
-    to_flat(xy[:, :, 1], y)
-    to_flat(heading, h)
-    to_flat(actions[:, :, 0], a0)
-    to_flat(actions[:, :, 1], a1)
-    sincos_all(h, sin_h, cos_h)
-    move(x, y, h, sin_h, cos_h, a0, a1, w)
-    from_flat(x, xy[:, :, 0])
-    from_flat(y, xy[:, :, 1])
-    from_flat(h, heading)
+    _moved(xy, heading, actions, w)
+
+
+@njit(**FAST)
+def _moved(xy, heading, actions, w):
+    """:func:`step`'s work; returns its flat state (``stages.flat_state``) after the move, for :func:`env_step`."""
+    state = flat_state(xy, heading, actions)
+    move(state[0], state[1], state[2], state[3], state[4], state[5], state[6], w)
+    pose_back(state, xy, heading)
+    return state
 
 
 @njit(cache=True)
@@ -176,18 +167,8 @@ def env_step(xy, heading, actions, w, acc, value, obs):
     (:func:`env_start`), carried from step to step of the episode."""
     n_ep, n = heading.shape
     ne = n * n_ep
-    state = np.empty((7, ne), dtype=xy.dtype)
-    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    to_flat(xy[:, :, 0], x)
-    to_flat(xy[:, :, 1], y)
-    to_flat(heading, h)
-    to_flat(actions[:, :, 0], a0)
-    to_flat(actions[:, :, 1], a1)
-    sincos_all(h, sin_h, cos_h)
-    move(x, y, h, sin_h, cos_h, a0, a1, w)                # sin_h, cos_h follow the new heading
-    from_flat(x, xy[:, :, 0])
-    from_flat(y, xy[:, :, 1])
-    from_flat(h, heading)
+    state = _moved(xy, heading, actions, w)
+    x, y, sin_h, cos_h = state[0], state[1], state[3], state[4]   # sin_h, cos_h follow the new heading
     pos = np.empty((n_ep, n, 2))                          # the reward reads float64
     if stepwise(w):
         score_step(w, x, y, pos, acc)

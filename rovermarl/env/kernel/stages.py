@@ -48,14 +48,9 @@ def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
     d = 3 * poi_xy.shape[0] + 2 * n
     if xy.shape != (n_ep, n, 2) or out.shape != (n_ep, n, d):
         raise ValueError("sense: expected xy (E, N, 2), heading (E, N) and out (E, N, 3P + 2N)")
-    state = np.empty((5, ne), dtype=xy.dtype)
-    x, y, h, sin_h, cos_h = state[0], state[1], state[2], state[3], state[4]
-    to_flat(xy[:, :, 0], x)
-    to_flat(xy[:, :, 1], y)
-    to_flat(heading, h)
-    sincos_all(h, sin_h, cos_h)
+    state = flat_pose(xy, heading, 5)
     obs = np.empty(d * ne, dtype=xy.dtype)
-    sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs)
+    sense_flat(state[0], state[1], state[3], state[4], n, poi_xy, poi_type, sensor_range, obs)
     for k in range(d):
         from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
 
@@ -103,20 +98,11 @@ def move(xy, heading, actions, v_max, w_max, speed_mode=0):
     ([[[0.866, 0.5]]], [[0.5236]])
     """
     n_ep, n = heading.shape
-    ne = n * n_ep
     if xy.shape != (n_ep, n, 2) or actions.shape != (n_ep, n, 2):
         raise ValueError("move: expected xy (E, N, 2), heading (E, N) and actions (E, N, 2)")
-    state = np.empty((7, ne), dtype=xy.dtype)
-    x, y, h, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    to_flat(xy[:, :, 0], x)
-    to_flat(xy[:, :, 1], y)
-    to_flat(heading, h)
-    to_flat(actions[:, :, 0], a0)
-    to_flat(actions[:, :, 1], a1)
-    move_flat(x, y, h, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode)
-    from_flat(x, xy[:, :, 0])
-    from_flat(y, xy[:, :, 1])
-    from_flat(h, heading)
+    state = flat_state(xy, heading, actions)
+    move_flat(state[0], state[1], state[2], state[3], state[4], state[5], state[6], v_max, w_max, speed_mode)
+    pose_back(state, xy, heading)
 
 
 @njit(cache=True)
@@ -165,6 +151,36 @@ def from_flat(v, out):
     for i in range(n):
         for e in range(n_ep):
             out[e, i] = v[i * n_ep + e]
+
+
+@njit(**FAST)
+def flat_pose(xy, heading, rows):
+    """The pose in the flat layout: xy (E, N, 2), heading (E, N) -> state (rows >= 5, N*E) with rows x, y, heading,
+    sin_h, cos_h (rover-major, as :func:`to_flat`); the rows after them are the caller's."""
+    n_ep, n = heading.shape
+    state = np.empty((rows, n * n_ep), dtype=xy.dtype)
+    to_flat(xy[:, :, 0], state[0])
+    to_flat(xy[:, :, 1], state[1])
+    to_flat(heading, state[2])
+    sincos_all(state[2], state[3], state[4])
+    return state
+
+
+@njit(**FAST)
+def flat_state(xy, heading, actions):
+    """A step's inputs in the flat layout: :func:`flat_pose` (7 rows), then a0, a1 from actions (E, N, 2)."""
+    state = flat_pose(xy, heading, 7)
+    to_flat(actions[:, :, 0], state[5])
+    to_flat(actions[:, :, 1], state[6])
+    return state
+
+
+@njit(**FAST)
+def pose_back(state, xy, heading):
+    """The pose rows of :func:`flat_state`'s ``state`` back into xy (E, N, 2) and heading (E, N)."""
+    from_flat(state[0], xy[:, :, 0])
+    from_flat(state[1], xy[:, :, 1])
+    from_flat(state[2], heading)
 
 
 @njit(**FAST)
