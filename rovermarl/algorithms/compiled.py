@@ -119,7 +119,6 @@ def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_se
     return t, f_parent
 
 
-
 @njit(cache=True)
 def _put_row(dst, i, src):
     """dst[i] = src (dst (R, P), src (P,)), element by element: numba's slice assignment compiles a shape check with

@@ -199,8 +199,8 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
 @njit(**FAST)
 def _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, ranged):
     """The loops of :func:`sense_flat`; ``ranged`` goes to :func:`bearing`. Not inlined by numba (LLVM still may):
-    numba's inlining of it, twice, took 9 of a cold start's 40 s of compiling; the kernel's speed is the same within
-    the noise of ``benchmarks/throughput.py``."""
+    numba's inlining of it, twice, took 9-10 s of a cold start's 55-60 s of compiling; numba still specialises it
+    on the literal ``ranged``, and the kernel's absolute rate is the same (docs/PERFORMANCE.md)."""
     ne = x.shape[0]
     p = poi_xy.shape[0]
     inv_pi = like(sensor_range, 1.0 / math.pi)
