@@ -93,10 +93,26 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
     out.mkdir(parents=True, exist_ok=True)
     with atomic_open(out / "curves.npz") as f:
         np.savez_compressed(f, **arrays)
+    teams = final_teams(runs)
+    if teams is not None:
+        with atomic_open(out / "genomes.npz") as f:
+            np.savez_compressed(f, **teams)
     with atomic_open(out / "config.yaml", "w") as f:
         f.write(OmegaConf.to_yaml(OmegaConf.create(job.config)))
     write_json(out / "summary.json", summary)
     return summary
+
+
+def final_teams(runs) -> dict | None:
+    """Every run's final team, for ``analysis verify`` to re-score: ``seed`` (R,) and ``genomes`` (R, N, P) float64;
+    None unless every run wrote its ``genomes.npy``."""
+    if not runs or not all(r.has("genomes.npy") for r in runs):
+        return None
+    genomes = [np.load(r.path / "genomes.npy", allow_pickle=False) for r in runs]
+    if len({g.shape for g in genomes}) != 1:
+        raise ResultsError(f"{runs[0].path.parent}: final teams of different shapes")
+    return {"seed": np.array([r.seed for r in runs], dtype=np.int64),
+            "genomes": np.stack(genomes).astype(np.float64)}
 
 
 def _kept_compute(out: Path, replaced: set[str]) -> dict:
