@@ -1,22 +1,26 @@
 #!/usr/bin/env bash
-# Held-out scores for compact results committed before the feature (issue 33): every job of RESULTS (default
-# results/paper; also results/selectors) is recomputed from its own overrides (its dir name) into OUT, one job at a
-# time on the embedded Ray, then `python -m rovermarl.analysis heldout merge OUT RESULTS` adds each run's held-out
-# score to the committed summary.json, after checking that every recomputed run ends at the committed final score.
-# Resumable, also across sessions: a job whose summary.json in RESULTS has held-out scores is skipped; one whose runs
-# are in OUT resumes there. Commit RESULTS between sessions.
-# Usage: [RESULTS=results/paper] [OUT=outputs/heldout/<name>] [SEEDS=16] launchers/heldout.sh [HYDRA_OVERRIDE ...]
+# Held-out scores and final teams for compact results committed before those features (issues 33 and 43): every job
+# of RESULTS (default results/paper; also results/selectors, results/geometry) whose dir name matches JOBS (a shell
+# pattern, default *) is recomputed from its own overrides (its dir name) into OUT, one job at a time on the embedded
+# Ray, then `python -m rovermarl.analysis heldout merge OUT RESULTS` adds each run's held-out score to the committed
+# summary.json and the runs' final teams as genomes.npz, after checking that every recomputed run ends at the
+# committed final score. Resumable, also across sessions: a job of RESULTS with held-out scores and genomes.npz is
+# skipped; one whose runs are in OUT resumes there. Commit RESULTS between sessions.
+# Usage: [RESULTS=results/paper] [OUT=outputs/heldout/<name>] [SEEDS=16] [JOBS='env.obs_radius=4,*']
+#        launchers/heldout.sh [HYDRA_OVERRIDE ...]
 set -euo pipefail
 RESULTS="${RESULTS:-results/paper}"
 OUT="${OUT:-outputs/heldout/$(basename "$RESULTS")}"
 SEEDS="${SEEDS:-16}"
 PYTHON="${PYTHON:-python}"
+JOBS="${JOBS:-*}"
 [ -d "$RESULTS" ] || { echo "$(basename "$0"): error: RESULTS=$RESULTS: no such directory" >&2; exit 2; }
-for summary in "$RESULTS"/*/summary.json; do
+for summary in "$RESULTS"/$JOBS/summary.json; do
+    [ -f "$summary" ] || continue
     name="$(basename "$(dirname "$summary")")"
-    if "$PYTHON" -c 'import json, sys; sys.exit(0 if json.load(open(sys.argv[1])).get("heldout_score") else 1)' \
-        "$summary"; then
-        echo "$(basename "$0"): $name has held-out scores: skipped" >&2
+    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" -c \
+        'import json, sys; sys.exit(0 if json.load(open(sys.argv[1])).get("heldout_score") else 1)' "$summary"; then
+        echo "$(basename "$0"): $name has held-out scores and final teams: skipped" >&2
         continue
     fi
     IFS=, read -r -a overrides <<< "$name"

@@ -9,6 +9,10 @@
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
   (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
+- ``verify DIR``: re-score every committed final team on its run's initial conditions and held-out ones; one line
+  per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
+- ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
+  (:mod:`rovermarl.analysis.radius`).
 - ``budget-geometry BUDGET_DIR GEOMETRY_DIR``: the budget and geometry section of docs/REPRODUCTION.md.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
@@ -66,6 +70,10 @@ def parser() -> argparse.ArgumentParser:
     h.add_argument("action", choices=("merge",))
     h.add_argument("sweep", type=Path, help="the sweep dir of launchers/heldout.sh, e.g. outputs/heldout/paper")
     h.add_argument("results", type=Path, help="the compact results, e.g. results/paper")
+    v = sub.add_parser("verify", help="re-score every committed final team; exit 1 on any difference")
+    v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
+    rd = sub.add_parser("radius", help="the pre-registered radius study: the report section")
+    rd.add_argument("results", type=Path, help="results/radius")
     g = sub.add_parser("budget-geometry", help="the duo question along budget and geometry: the report section")
     g.add_argument("budget", type=Path, help="results/budget")
     g.add_argument("geometry", type=Path, help="results/geometry")
@@ -90,6 +98,11 @@ def main(argv=None) -> None:
         elif args.command == "heldout":
             from rovermarl.analysis.heldout import merge
             merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        elif args.command == "radius":
+            from rovermarl.analysis.radius import report as radius_report
+            print(radius_report(args.results), end="")
+        elif args.command == "verify":
+            _verify(args.results)
         elif args.command == "budget-geometry":
             from rovermarl.analysis.budget_geometry import report
             print(report(args.budget, args.geometry), end="")
@@ -100,6 +113,18 @@ def main(argv=None) -> None:
     except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config refused or not rebuilt
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
+
+
+def _verify(path: Path) -> None:
+    from rovermarl.analysis.verify import verify
+
+    checked = verify(path)
+    for c in checked:
+        print(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}")
+    bad = sum(not c.ok for c in checked)
+    if bad:
+        print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)
+        sys.exit(1)
 
 
 def _paths(study: str, action: str, paths: list[Path]) -> None:

@@ -1,10 +1,11 @@
-"""Held-out scores for compact results committed before the feature (issue 33: results/paper, results/selectors).
+"""Held-out scores and final teams for compact results committed before those features (issues 33 and 43).
 
-The compact results hold no final teams, so ``launchers/heldout.sh`` recomputes each job's runs (a run is a pure
-function of its config and seed) into a sweep dir, and :func:`merge` adds each run's held-out score to the job's
-committed ``summary.json`` (``heldout_score`` per seed, ``median_heldout_score``), after checking that every
-recomputed run ends at the committed final score, bit for bit: the curves do not change, only the held-out column
-is added. ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR``.
+Compact results exported before issue 43 hold no final teams, so ``launchers/heldout.sh`` recomputes each job's
+runs (a run is a pure function of its config and seed) into a sweep dir, and :func:`merge` adds each run's held-out
+score to the job's committed ``summary.json`` (``heldout_score`` per seed, ``median_heldout_score``) and every run's
+final team as ``genomes.npz`` (:func:`rovermarl.analysis.export.final_teams`), after checking that every recomputed
+run ends at the committed final score, bit for bit: the curves do not change, only the held-out column and the
+teams are added. ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR``.
 """
 
 from __future__ import annotations
@@ -14,14 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
+from rovermarl.analysis.export import final_teams
 from rovermarl.analysis.results import ResultsError
-from rovermarl.record.outputs import write_json
+from rovermarl.analysis.sweep import RunCurve
+from rovermarl.record.outputs import atomic_open, write_json
 
 
 def merge(sweep: Path, results: Path, log=print) -> list[str]:
-    """Add the held-out scores of ``sweep``'s finished jobs to the same-named jobs of ``results``; returns the names
-    of the jobs updated. A job whose recomputed final scores differ from the committed ones is refused (an error
-    naming it and the first seed that differs), and nothing of it is written."""
+    """Add the held-out scores and final teams of ``sweep``'s finished jobs to the same-named jobs of ``results``;
+    returns the names of the jobs updated. A job whose recomputed final scores differ from the committed ones is
+    refused (an error naming it and the first seed that differs), and nothing of it is written."""
     updated = []
     for path in sorted(Path(results).glob("*/summary.json")):
         name = path.parent.name
@@ -38,11 +41,20 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
             if got[seed] != value:
                 raise ResultsError(f"{name}: seed {seed} ends at {got[seed]} recomputed, {value} committed: "
                                    "not the same run; its held-out score is not added")
-        if committed.get("heldout_score") == held:
-            continue
-        committed["heldout_score"] = held
-        committed["median_heldout_score"] = float(np.median([held[s] for s in sorted(held, key=int)]))
-        write_json(path, committed)
-        updated.append(name)
-        log(f"{name}: held-out median {committed['median_heldout_score']:.4g} over {len(held)} runs added")
+        runs = [RunCurve(Path(sweep) / name / "runs" / f"seed_{int(s):03d}", int(s), np.empty(0), None)
+                for s in sorted(want, key=int)]
+        teams = final_teams(runs)
+        added = []
+        if teams is not None and not (path.parent / "genomes.npz").is_file():
+            with atomic_open(path.parent / "genomes.npz") as f:
+                np.savez_compressed(f, **teams)
+            added.append(f"final teams of {len(runs)} runs")
+        if committed.get("heldout_score") != held:
+            committed["heldout_score"] = held
+            committed["median_heldout_score"] = float(np.median([held[s] for s in sorted(held, key=int)]))
+            write_json(path, committed)
+            added.append(f"held-out median {committed['median_heldout_score']:.4g} over {len(held)} runs")
+        if added:
+            updated.append(name)
+            log(f"{name}: " + " and ".join(added) + " added")
     return updated
