@@ -7,6 +7,7 @@ from rovermarl.analysis.budget_geometry import _jobs, block, paper_picture, repo
 from tests.conftest import ROOT
 
 DOC = (ROOT / "docs" / "REPRODUCTION.md").read_text()
+READING = " ".join(DOC.split("<!-- budget-geometry:end -->")[1].split("\n\n## ")[0].split())   # the prose after it
 
 
 def test_the_section_is_the_generated_report():
@@ -20,7 +21,8 @@ def test_the_reading_holds_to_the_results():
         assert j["setup"] == "duo" and np.median(j["final"]) < 5 and (j["final"] < 6).all()
         assert np.median(j["final"]) == 4.0 or j["method"] == "homogeneous"
     homogeneous = next(j["final"] for j in budget if j["method"] == "homogeneous")
-    assert np.median(homogeneous) == 4.5625 and (homogeneous >= 5).sum() == 3
+    assert 4 < np.median(homogeneous) < 5                      # keeps climbing, still below 5
+    assert f"to {np.median(homogeneous):.3g} ({(homogeneous >= 5).sum()} runs at 5)" in READING
     big = {j["method"]: j["final"] for j in geometry if (j["obs_radius"], j["poi_distance"], j["setup"]) ==
            ("4", "13", "duo")}
     assert all(np.median(v) >= 5 for v in big.values()) and (big["k=2"] >= 6).any()
@@ -29,4 +31,6 @@ def test_the_reading_holds_to_the_results():
     assert solo and all((v == 4).all() for v in solo)
     three = {j["method"]: j["final"] for j in geometry if (j["obs_radius"], j["poi_distance"], j["setup"]) ==
              ("3", "13", "duo")}
-    assert max(np.median(v) for v in three.values()) == 4.9375 and (three["k=2"] >= 6).sum() == 1
+    best = max(np.median(v) for v in three.values())
+    assert 4 < best < 5 and (three["k=2"] >= 6).sum() == 1       # part of the way
+    assert f"4 to {best:.3g}; one k=2 run at 6" in READING
