@@ -48,7 +48,7 @@ from rovermarl.env import kernel, reference
 from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
-from rovermarl.runner.chunk import Run, parts, to_plain
+from rovermarl.runner.chunk import Run, to_plain
 
 
 def kernel_inputs(world, seed: int = 0):
@@ -181,16 +181,11 @@ def numpy_mismatches(world, teams: int) -> int:
 def loop_rate(cfg: dict, n: int, loop: str = "auto") -> float:
     """Generations (= team evaluations) per second of the full loop: choose, mutate, evaluate, select, record.
     ``loop``: "auto" (the compiled loop, which the default config takes) or "python" (CC11ES's Python loop)."""
-    cfg = {**cfg, "generations": n}
-    algorithm = parts(cfg).algorithm
-    algorithm.loop = loop
-    try:
-        run = Run(cfg, seed=0)
-        t = time.process_time()
-        run.advance(n)
-        return n / (time.process_time() - t)
-    finally:
-        algorithm.loop = "auto"
+    cfg = {**cfg, "generations": n, "algorithm": {**cfg["algorithm"], "loop": loop}}
+    run = Run(cfg, seed=0)
+    t = time.process_time()
+    run.advance(n)
+    return n / (time.process_time() - t)
 
 
 @njit(**FAST)

@@ -29,9 +29,10 @@ the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_
 ``reset(seed=s)`` (``s`` an integer >= 0; anything else is refused with a ``ValueError``) starts from
 ``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those initial conditions
 in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws the next start from
-a stream of the last seed. Each step runs the world's own compiled hooks (``World.compiled``: ``step``, ``observe``,
-``returns_of``; :mod:`rovermarl.env.kernel.hooks`), the rollout's dynamics, one implementation, for the paper's world
-and any world plug-in (``RoverParallelEnv(world)``).
+the same stream (the env stream of :mod:`rovermarl.env.streams`). The environment is the one-environment view of
+:class:`rovermarl.vector.VectorEnv` (B = 1, no auto-reset): its step, reward, observation bounds and seeds are that
+env's, which runs the world's own compiled hooks (``World.compiled``; :mod:`rovermarl.env.kernel.hooks`), the
+rollout's dynamics, one implementation, for the paper's world and any world plug-in (``RoverParallelEnv(world)``).
 
 ``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
 so far in the world's reading (the episode's return after the last step, bit-identical to ``World.returns``), and
@@ -54,7 +55,6 @@ import os
 import sys
 import warnings
 from collections.abc import Mapping
-from numbers import Integral
 
 import numpy as np
 
@@ -68,7 +68,8 @@ except ModuleNotFoundError as e:                       # an optional extra: say 
                               name=e.name) from None
 
 from rovermarl.env import World, kernel, make_world
-from rovermarl.jit import say_if_cold
+from rovermarl.env.streams import env_seed
+from rovermarl.vector import VectorEnv
 
 ACTION_LOW, ACTION_HIGH = -1.0, 1.0
 ACTION_RULE = f"an action is 2 finite real numbers (speed, turn), clipped to [{ACTION_LOW:g}, {ACTION_HIGH:g}]"
@@ -113,20 +114,14 @@ class RoverParallelEnv(ParallelEnv):
         if render_mode not in (None, "human", "rgb_array"):
             raise ValueError(f"render_mode must be None, 'human' or 'rgb_array', got {render_mode!r}")
         self.world, self.render_mode, self.time_feature = world, render_mode, bool(time_feature)
+        self.env = VectorEnv(1, world=world, time_feature=time_feature, autoreset=False)   # the one step
         self.possible_agents = [f"rover_{i}" for i in range(world.n_rovers)]
         self.agents: list[str] = []
-        low = np.concatenate([lo for _, lo, _ in world.obs_blocks()])       # the world's observation blocks
-        high = np.concatenate([hi for _, _, hi in world.obs_blocks()])
-        if self.time_feature:
-            low, high = np.append(low, 0.0), np.append(high, 1.0)
         n_state = 4 * world.n_rovers + 1 + world.layout_dim
         self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float64)
-        f = self._f = np.dtype(world.dtype).type                          # env.dtype: the kernel's precision
-        self._obs_space = spaces.Box(low.astype(f), high.astype(f), dtype=f)
+        f = self._f = self.env.dtype.type                                 # env.dtype: the kernel's precision
+        self._obs_space = spaces.Box(self.env.obs_low, self.env.obs_high, dtype=f)
         self._act_space = spaces.Box(ACTION_LOW, ACTION_HIGH, (2,), dtype=f)
-        self._k = world.kernel                                              # the world as the kernel reads it
-        self._rng = np.random.default_rng()
-        self.t = 0
 
     def observation_space(self, agent: str) -> spaces.Box:
         return self._obs_space
@@ -134,24 +129,36 @@ class RoverParallelEnv(ParallelEnv):
     def action_space(self, agent: str) -> spaces.Box:
         return self._act_space
 
+    @property
+    def xy(self) -> np.ndarray:
+        """(1, N, 2): the rovers' positions now, in ``env.dtype``."""
+        return self.env.xy
+
+    @property
+    def heading(self) -> np.ndarray:
+        """(1, N): the rovers' headings now."""
+        return self.env.heading
+
+    @property
+    def t(self) -> int:
+        return self.env.t
+
+    @property
+    def value(self) -> float:
+        """The team's return so far in the world's reading (after the last step: the episode's return)."""
+        return float(self.env.value[0])
+
     # ---- episode ---------------------------------------------------------------------------------------------
     def reset(self, seed: int | None = None, options: dict | None = None):
         """Start an episode: from ``World.initial_conditions(seed=seed, n=1)``, or the next start of the stream of
         the last seed. Returns observations and infos per agent. ``seed``: None or an integer >= 0."""
-        if seed is not None:
-            seed = _seed(seed)
-            xy, heading, layout = self.world.initial_conditions(seed=seed, n=1)
-            self._rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(1,)))
-        else:
-            xy, heading, layout = self.world.initial_conditions(self._rng, n=1)
+        obs, _ = self.env.reset(seed=None if seed is None else env_seed(seed))
         w = self.world
-        self.xy, self.heading = xy.astype(self._f), heading.astype(self._f)  # (1, N, 2), (1, N)
-        self.layout, self._k = layout[0], w.kernel_for(layout)              # the world as the kernel reads it
+        self.layout = self.env.layout[0]                                   # (K,): a world plug-in's
         self.path = np.empty((w.steps + 1, w.n_rovers, 2))
         self.path[0] = self.xy[0]
-        self.t, self.value = 0, 0.0
         self.agents = list(self.possible_agents)
-        return self._observe(), self._infos()
+        return self._per_agent(obs), self._infos()
 
     def step(self, actions: dict):
         """Move every rover by its action ``(a0, a1)`` (a missing agent's is (0, 0): straight on at half speed in
@@ -166,20 +173,15 @@ class RoverParallelEnv(ParallelEnv):
         for key in actions:
             if key not in self.possible_agents:
                 raise ValueError(f"actions[{key!r}]: no such agent; the agents are {self._agent_names()}")
-        f = self._f
-        a = np.zeros((1, w.n_rovers, 2), f)
+        a = np.zeros((1, w.n_rovers, 2), self._f)
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
                 a[0, i] = self.check_action(agent, actions[agent])
-        say_if_cold(w.compiled.step, (self.xy, self.heading, a, self._k), "the environment's functions")
-        w.compiled.step(self.xy, self.heading, a, self._k)                  # the rollout's move hook
-        self.t += 1
+        obs, rewards, terminated, _, _ = self.env.step(a)
         self.path[self.t] = self.xy[0]
-        before, self.value = self.value, self._running_return()
-        done = self.t == w.steps
-        reward = self.value - before if w.compiled.stepwise(self._k) else self.value if done else 0.0
+        reward, done = float(rewards[0, 0]), bool(terminated[0, 0])
         agents = self.agents
-        out = (self._observe(), dict.fromkeys(agents, reward), dict.fromkeys(agents, done),
+        out = (self._per_agent(obs), dict.fromkeys(agents, reward), dict.fromkeys(agents, done),
                dict.fromkeys(agents, False), self._infos())                    # terminated at the horizon: see above
         if done:
             self.agents = []
@@ -211,25 +213,14 @@ class RoverParallelEnv(ParallelEnv):
         agents = self.possible_agents
         return ", ".join(agents) if len(agents) <= 4 else f"{agents[0]} ... {agents[-1]}"
 
-    def _running_return(self) -> float:
-        """The team's return so far in the world's reading (after the last step: the episode's return)."""
-        out = np.empty(1)                                                      # the rollout's reward hooks
-        self.world.compiled.returns_of(np.ascontiguousarray(self.path[None, : self.t + 1]), self._k, out)
-        return float(out[0])
-
-    def _observe(self) -> dict:
-        w = self.world
-        obs = np.empty((1, w.n_rovers, w.obs_dim), self._f)
-        say_if_cold(w.compiled.observe, (self.xy, self.heading, self._k, obs), "the environment's functions")
-        w.compiled.observe(self.xy, self.heading, self._k, obs)                 # the rollout's sense hook
-        if self.time_feature:
-            obs = np.concatenate([obs, np.full((1, w.n_rovers, 1), self.t / w.steps, self._f)], axis=2)
+    def _per_agent(self, obs: np.ndarray) -> dict:
+        """Observations (1, N, D) as a dict of agent -> (D,)."""
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
 
     def _infos(self) -> dict:
         w = self.world
         count = np.zeros((1, w.n_pois), np.int64)
-        kernel.observers(self.xy.astype(np.float64), w.poi_positions(self.layout), self._k.obs_radius, count)
+        kernel.observers(self.xy.astype(np.float64), w.poi_positions(self.layout), w.kernel.obs_radius, count)
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 
@@ -290,13 +281,6 @@ class RoverParallelEnv(ParallelEnv):
 def _display() -> bool:
     """Whether a window can be shown: a display on Linux, any desktop on macOS and Windows."""
     return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def _seed(seed) -> int:
-    """A reset seed: an integer >= 0 (a Python or NumPy integer; not a bool), else a one-line ``ValueError``."""
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (Integral, np.integer)) or seed < 0:
-        raise ValueError(f"seed={_show(seed)}: must be None or an integer >= 0")
-    return int(seed)
 
 
 def _show(value, width: int = 60) -> str:

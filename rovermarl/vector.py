@@ -3,8 +3,8 @@
 ==================== ===========================================================================================
 Import               ``from rovermarl.vector import VectorEnv, GymVectorEnv``
 Agents               N rovers per environment (``env.n_rovers``, 4); B environments (``num_envs``)
-Observations         (B, N, D) in ``env.dtype``: the world's sensors (D = 38 in the paper's world), and with
-                     ``time_feature=True`` the step t / T as a last number (D + 1)
+Observations         (B, N, D) in ``env.dtype``: the world's sensors (38 in the paper's world) and, with
+                     ``time_feature=True`` (the default), the step t / T as a last number (D = 39)
 Actions              (B, N, 2): ``(a0, a1)`` in [-1, 1] (speed, turn), clipped to that box
 Rewards              (B, N), the team's, the same for each agent: ``final`` pays the team return at the last step
                      and 0 before; a per-step reading pays the growth of its running value (as the PettingZoo env)
@@ -12,14 +12,18 @@ Episode              ``env.steps`` (15) steps, then every agent of every environ
                      environments run in step; why termination: ``rovermarl.pettingzoo``)
 Auto-reset           same step: the step that terminates returns the next episode's first observations, the last
                      ones in ``infos["final_obs"]`` and the episodes' returns in ``infos["final_return"]``
+                     (``autoreset=False``: the episodes stay over until ``reset()``)
+Defaults             :data:`DEFAULTS`, one set for both classes: B = 256 environments of ``setup="solo"``, with the
+                     time feature (a learner then sees a Markov episode with a terminal step)
 ==================== ===========================================================================================
 
 Each step is one compiled call (:func:`rovermarl.env.kernel.fused.env_step`: the world's own hooks, those of the
 rollout), so a policy and initial conditions give the episode returns :meth:`World.returns` gives. Any world plug-in
 works (``VectorEnv(world=...)``). ``reset(seed=s)`` draws the B starts of environment batch ``s`` from
-``World.initial_conditions(SeedSequence(s), n=B)`` (later auto-resets continue that stream); ``seed`` may also be a
-list of B integers, environment b's starts then come from its own ``SeedSequence(seed[b])``; ``options={"ic": ic}``
-starts from given initial conditions (e.g. ``World.run_ic``).
+``World.initial_conditions(SeedSequence(s), n=B)`` (later resets and auto-resets continue that stream: the env stream
+of :mod:`rovermarl.env.streams`); ``seed`` may also be a list of B integers, environment b's starts then come from its
+own ``SeedSequence(seed[b])``; ``options={"ic": ic}`` starts from given initial conditions (e.g. ``World.run_ic``).
+The PettingZoo env (:mod:`rovermarl.pettingzoo`) is the one-environment view of this step, without auto-reset.
 :class:`GymVectorEnv` is a Gymnasium ``VectorEnv`` view with the agents flattened (B*N sub-environments sharing one
 policy, as SuperSuit's parameter sharing does) for single-agent libraries.
 
@@ -27,7 +31,7 @@ policy, as SuperSuit's parameter sharing does) for single-agent libraries.
 >>> env = VectorEnv(num_envs=8)
 >>> obs, infos = env.reset(seed=0)
 >>> obs.shape
-(8, 4, 38)
+(8, 4, 39)
 """
 
 from __future__ import annotations
@@ -35,29 +39,32 @@ from __future__ import annotations
 import numpy as np
 
 from rovermarl.env import World, make_world
+from rovermarl.env.streams import env_stream
 from rovermarl.jit import say_if_cold
+
+DEFAULTS = {"num_envs": 256, "setup": "solo", "time_feature": True}   # VectorEnv's and GymVectorEnv's, one set
 
 
 class VectorEnv:
     """B environments of one world (``world``, else ``make_world(setup, **overrides)``), stepped together."""
 
-    def __init__(self, num_envs: int = 1024, setup: str = "solo", world: World | None = None,
-                 time_feature: bool = False, **overrides):
+    def __init__(self, num_envs: int = DEFAULTS["num_envs"], setup: str = DEFAULTS["setup"], world: World | None = None,
+                 time_feature: bool = DEFAULTS["time_feature"], autoreset: bool = True, **overrides):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r}: must be an integer >= 1")
         self.world = world if world is not None else make_world(setup, **overrides)
         self.num_envs, self.n_agents = int(num_envs), self.world.n_rovers
-        self.time_feature = bool(time_feature)
+        self.time_feature, self.autoreset = bool(time_feature), bool(autoreset)
         self.obs_dim = self.world.obs_dim + self.time_feature
         self.dtype = np.dtype(self.world.dtype)
-        low, high = (np.concatenate([b[i] for b in self.world.obs_blocks()]) for i in (1, 2))
+        low, high = (np.concatenate([b[i] for b in self.world.obs_blocks()]) for i in (1, 2))   # the bounds' home
         if self.time_feature:
             low, high = np.append(low, 0.0), np.append(high, 1.0)
-        self.obs_low, self.obs_high = low.astype(self.dtype), high.astype(self.dtype)
+        self.obs_low, self.obs_high = low.astype(self.dtype), high.astype(self.dtype)   # (D,) each
         self._compiled = self.world.compiled
         self._rng = np.random.default_rng()
         self._rngs = None
-        self.t = 0
+        self.t, self.over = 0, True
 
     # ---- episodes ------------------------------------------------------------------------------------------------
     def reset(self, seed=None, options: dict | None = None):
@@ -71,12 +78,12 @@ class VectorEnv:
         else:
             self._seed(seed)
             ic = self._draw()
-        xy, heading, layout = w._batch(*ic)
-        self.xy, self.heading = xy.astype(self.dtype), heading.astype(self.dtype)
-        self._k = w.kernel_for(np.ascontiguousarray(layout) if w.layout_dim else layout)
+        xy, heading, self._k = w.kernel_args(ic)                     # checked, in env.dtype, the layout's kernel
+        self.xy, self.heading = np.array(xy), np.array(heading)     # (B, N, 2), (B, N): stepped in place
+        self.layout = np.asarray(ic[2], np.float64) if len(ic) > 2 else np.empty((b, 0))   # (B, K)
         self._acc = self._compiled.env_start(self._k, b)
-        self.value = np.zeros(b)
-        self.t = 0
+        self.value = np.zeros(b)                                     # (B,): each episode's return so far
+        self.t, self.over = 0, False
         obs = np.empty((b, self.n_agents, w.obs_dim), self.dtype)
         say_if_cold(self._compiled.observe, (self.xy, self.heading, self._k, obs), "the environment's functions")
         self._compiled.observe(self.xy, self.heading, self._k, obs)
@@ -85,7 +92,9 @@ class VectorEnv:
     def step(self, actions: np.ndarray):
         """Move every rover of every environment by its action ``(a0, a1)`` (actions (B, N, 2), clipped to [-1, 1]).
         Returns observations (B, N, D), rewards (B, N), terminations (B, N) (all at the horizon), truncations
-        (B, N) (never) and infos."""
+        (B, N) (never) and infos (``return`` (B,): each episode's return so far)."""
+        if self.over:
+            raise RuntimeError("the episodes are over: call reset()")
         a = np.asarray(actions)
         if a.shape != (self.num_envs, self.n_agents, 2):
             raise ValueError(f"actions have shape {a.shape}, expected ({self.num_envs}, {self.n_agents}, 2)")
@@ -108,9 +117,11 @@ class VectorEnv:
         terminated = np.full((b, n), done)
         infos = {"step": self.t, "return": self.value.copy()}
         obs = self._with_time(obs)
-        if done:                                               # same-step auto-reset
+        if done and self.autoreset:                            # same-step auto-reset
             infos.update(final_obs=obs, final_return=self.value.copy())
             obs, _ = self.reset(options={"ic": self._draw()})
+        elif done:
+            self.over = True
         return obs, rewards, terminated, np.zeros((b, n), bool), infos
 
     # ---- helpers ---------------------------------------------------------------------------------------------
@@ -124,12 +135,12 @@ class VectorEnv:
         if seed is None:
             return
         if np.ndim(seed) == 0:
-            self._rng, self._rngs = np.random.default_rng(np.random.SeedSequence(_int(seed))), None
+            self._rng, self._rngs = env_stream(seed), None
             return
-        seeds = [_int(s) for s in seed]
-        if len(seeds) != self.num_envs:
-            raise ValueError(f"seed: {len(seeds)} seeds for {self.num_envs} environments")
-        self._rngs = [np.random.default_rng(np.random.SeedSequence(s)) for s in seeds]
+        streams = [env_stream(s) for s in seed]
+        if len(streams) != self.num_envs:
+            raise ValueError(f"seed: {len(streams)} seeds for {self.num_envs} environments")
+        self._rngs = streams
 
     def _draw(self):
         """B starts: one draw from the batch's stream, or one per environment from its own."""
@@ -137,12 +148,6 @@ class VectorEnv:
             return self.world.initial_conditions(self._rng, n=self.num_envs)
         parts = [self.world.initial_conditions(r, n=1) for r in self._rngs]
         return tuple(np.concatenate(p) for p in zip(*parts, strict=True))
-
-
-def _int(seed) -> int:
-    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed={seed!r}: must be None, an integer >= 0 or a list of them")
-    return int(seed)
 
 
 try:                                        # the Gymnasium view needs gymnasium (rovermarl[pettingzoo] has it)
@@ -160,8 +165,8 @@ if gymnasium is not None:
 
         metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
 
-        def __init__(self, num_envs: int = 256, setup: str = "solo", world: World | None = None,
-                     time_feature: bool = True, **overrides):
+        def __init__(self, num_envs: int = DEFAULTS["num_envs"], setup: str = DEFAULTS["setup"],
+                     world: World | None = None, time_feature: bool = DEFAULTS["time_feature"], **overrides):
             self.env = VectorEnv(num_envs, setup, world, time_feature, **overrides)
             e = self.env
             self.num_envs = e.num_envs * e.n_agents

@@ -1,26 +1,51 @@
 """The compiled generation loop (rovermarl.algorithms.compiled) against the Python loop of CC11ES: same arrays,
-events, states and evaluation counts, bit for bit; chosen only where it applies."""
+events, states and evaluation counts, bit for bit, for every configuration ``algorithm.loop=auto`` sends to it; chosen
+only where it applies, and ``algorithm.loop=compiled`` refused in one line elsewhere."""
+
+import itertools
+import sys
 
 import numpy as np
 import pytest
 
-from rovermarl.algorithms import NullObserver, compiled
+from rovermarl import errors
+from rovermarl.algorithms import compiled
 from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
-from rovermarl.algorithms.operators.selectors import EXP3
-from rovermarl.algorithms.operators.team import pick_distinct
+from rovermarl.algorithms.operators.selection import Selection
+from rovermarl.algorithms.operators.selectors import EXP3, FixedK
+from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam, pick_distinct
 from rovermarl.env.kernel import pairwise_sum, score
-from rovermarl.runner.chunk import Run, parts, to_plain
-from tests.conftest import make_cfg
+from rovermarl.runner.chunk import Run, to_plain
+from rovermarl.runner.validate import validate
+from tests.conftest import ROOT, make_cfg
+
+# Each operator class the compiled loop runs (compiled.OPERATORS), as the overrides that choose it ...
+CLASSES = {FixedK: ["k=2"], EXP3: ["k=adaptive"], MixedMutation: [], Selection: [], HeterogeneousTeam: [],
+           HomogeneousTeam: ["team=homogeneous"]}
+# ... and the other choices the compiled loop takes as they are: the selection rule, the precision, the observer.
+CHOICES = ((["selection=soft"], ["selection=strict"]), ([], ["env.dtype=float32"]), ([], ["record.occupancy=false"]))
+EVERY = [sum(combo, []) for combo in itertools.product(
+    *([CLASSES[c] for c in classes] for classes in compiled.OPERATORS.values()), *CHOICES)]
+MORE = [                                         # other values of the operators' parameters and of the world
+    ["k=1"], ["k=adaptive", "setup=duo"], ["k=4"],
+    ["k=adaptive", "k.reward=gain", "k.arms=[1,3]", "mutation.p_gaussian=0.5"],
+    ["k=3", "env.reward=any_step", "env.speed=clip", "env.episodes=9"],
+    ["k=adaptive", "setup=duo", "env.dtype=float32"],
+]
+
+
+def test_every_class_the_compiled_loop_runs_has_its_configurations_here():
+    assert {c for classes in compiled.OPERATORS.values() for c in classes} == set(CLASSES)
+    assert len(EVERY) == 32
 
 
 def _run(overrides, loop, monkeypatch, seed=1, chunks=(700, 500)):
-    """Chunks of a run with the loop forced to ``loop``; returns (arrays, events, state, evaluations, compiled
+    """Chunks of a run under ``algorithm.loop=loop``; returns (arrays, events, state, evaluations, compiled
     calls)."""
-    cfg = to_plain(make_cfg(*overrides, "generations=1200"))
+    cfg = to_plain(make_cfg(*overrides, "generations=1200", f"algorithm.loop={loop}"))
     calls = []
     real = compiled._generations
     monkeypatch.setattr(compiled, "_generations", lambda *a: calls.append(1) or real(*a))
-    monkeypatch.setattr(parts(cfg).algorithm, "loop", loop)
     run = Run(cfg, seed)
     arrays = [run.advance(n) for n in chunks]
     resumed = Run(cfg, seed, state=run.state())                   # a chunk after a resume, too
@@ -44,14 +69,10 @@ def _assert_same(a, b, path="run"):
         assert a == b, path
 
 
-@pytest.mark.parametrize("overrides", [
-    ["k=1"], ["k=adaptive", "setup=duo"], ["k=4"], ["team=homogeneous"],
-    ["k=2", "selection=strict", "record.occupancy=false"],
-    ["k=adaptive", "k.reward=gain", "k.arms=[1,3]", "mutation.p_gaussian=0.5"],
-    ["k=3", "env.reward=any_step", "env.speed=clip", "env.episodes=9"],
-    ["k=adaptive", "setup=duo", "env.dtype=float32"],
-])
+@pytest.mark.parametrize("overrides", EVERY + MORE)
 def test_compiled_loop_gives_the_python_loops_run(overrides, monkeypatch):
+    run = Run(to_plain(make_cfg(*overrides, "generations=10")), 0)
+    assert compiled.refusal(run.parts.algorithm, run.evaluate.fresh, True) is None      # auto takes the compiled loop
     py = _run(overrides, "python", monkeypatch)
     jit = _run(overrides, "auto", monkeypatch)
     assert py[4] == 0 and jit[4] > 1                             # each loop ran as forced
@@ -67,23 +88,41 @@ class MyMutation(MixedMutation):
     """A user's mutation built on the mixed one."""
 
 
-@pytest.mark.parametrize("overrides, target, plain_evaluate, observer, expected", [
-    (["k=adaptive"], None, False, None, True),
-    (["k=2", "team=homogeneous", "selection=strict"], None, False, NullObserver(), True),
-    (["k=ucb1"], None, False, None, False),
-    (["k=1", "evaluation.fresh_ic=true"], None, False, None, False),
-    (["k=1"], None, True, None, False),                          # an evaluation without kernel_inputs (IC shards)
-    (["k=1"], None, False, object(), False),                     # an observer without switch_inputs
-    (["k=2"], ("mutation", "MyMutation"), False, None, False),
-    (["k=adaptive"], ("k", "MyEXP3"), False, None, False),
+@pytest.mark.parametrize("overrides, target, local, expected", [
+    (["k=adaptive"], None, True, True),
+    (["k=2", "team=homogeneous", "selection=strict"], None, True, True),
+    (["k=ucb1"], None, True, False),
+    (["k=1", "evaluation.fresh_ic=true"], None, True, False),
+    (["k=1"], None, False, False),                               # teams scored in other processes (IC shards)
+    (["k=2"], ("mutation", "MyMutation"), True, False),
+    (["k=adaptive"], ("k", "MyEXP3"), True, False),
 ])
-def test_compiled_loop_only_where_it_applies(overrides, target, plain_evaluate, observer, expected):
+def test_compiled_loop_only_where_it_applies(overrides, target, local, expected):
     cfg = make_cfg(*overrides, "generations=10")
     if target:
         cfg[target[0]]._target_ = f"{__name__}.{target[1]}"
     run = Run(to_plain(cfg), 0)
-    evaluate = (lambda genomes: run.evaluate(genomes)) if plain_evaluate else run.evaluate
-    assert compiled.supports(run.parts.algorithm, evaluate, observer or run.observer) is expected
+    assert (compiled.refusal(run.parts.algorithm, run.evaluate.fresh, local) is None) is expected
+
+
+@pytest.mark.parametrize("overrides, why", [
+    (["k=ucb1"], "runs only the packaged operators FixedK, EXP3 as selector, not "),
+    (["k=1", "evaluation.fresh_ic=true"], "under evaluation.fresh_ic every generation draws new initial conditions"),
+    (["k=1", "parallel.ic_shards=2"], "IC shards (parallel.ic_shards > 1) score teams in other processes"),
+    (["+env._target_=examples.random_pois.random_pois.RandomPois"], "a world plug-in has its own compiled rollout"),
+    (["algorithm=ccea"], "the CCEA has no compiled generation loop"),
+])
+def test_a_compiled_loop_where_none_applies_is_refused_in_one_line(overrides, why):
+    sys.path.insert(0, str(ROOT))
+    with pytest.raises(errors.ConfigError) as e:
+        validate(make_cfg(*overrides, "algorithm.loop=compiled"))
+    assert str(e.value).startswith("algorithm.loop=compiled: ") and why in str(e.value) and "\n" not in str(e.value)
+    validate(make_cfg(*overrides, "algorithm.loop=python"))      # the Python loop takes it
+
+
+def test_the_loop_is_a_choice_of_three():
+    with pytest.raises(errors.ConfigError, match=r"^algorithm.loop=fast: must be one of auto, python, compiled$"):
+        validate(make_cfg("algorithm.loop=fast"))
 
 
 def test_numba_draws_what_numpy_draws():

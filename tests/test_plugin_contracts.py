@@ -101,14 +101,14 @@ def test_random_search_spends_exactly_lam_evaluations_and_the_observer_sees_each
     np.testing.assert_array_equal(run.observer.parent_xy, xy)         # the accepted team's own final positions
 
 
-def test_the_observer_refuses_a_score_without_its_evaluation_in_one_line():
+def test_the_observer_refuses_a_team_without_its_final_positions_in_one_line():
     from rovermarl.algorithms.base import AlgorithmError
     from rovermarl.record.events import BehaviourObserver
     world = make_world("solo")
     obs = BehaviourObserver(world, world.run_ic(0), {})
     team = np.zeros((4, world.n_params))
-    with pytest.raises(AlgorithmError, match="pass on the value evaluate returned") as e:
-        obs.accepted(1, team, 2.0, True)
+    with pytest.raises(AlgorithmError, match=r"pass on the final_xy of evaluate.measure\(genomes\)") as e:
+        obs.accepted(1, team, 2.0, True, None)
     assert "\n" not in str(e.value)
     with pytest.raises(AlgorithmError):
-        obs.evaluated(np.array([True, False, False, False]), float(world.evaluate(team, world.run_ic(0))))
+        obs.evaluated(np.array([True, False, False, False]), None)

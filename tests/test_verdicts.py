@@ -26,22 +26,45 @@ def _summary(job: str) -> dict:
     return json.loads((ROOT / "results/paper" / job / "summary.json").read_text())
 
 
+PAPER_C5 = (2, 16)   # the paper's runs reaching 6 in duo, k=1 and k=2 each (C5)
+PAPER_C3 = (1, 16)   # the paper's runs reaching 4 in solo, k=4 and homogeneous each (C3)
+
+
+def _reached(summary: dict, level: str) -> tuple[int, int]:
+    """(runs of a job that reached ``level``, runs), from its summary."""
+    first = summary["first_generation_reaching"][level]
+    return sum(v is not None for v in first.values()), len(summary["final_score"])
+
+
+def _fisher(a: tuple[int, int], b: tuple[int, int]) -> float:
+    """Fisher's exact p of a hits out of runs against b (each (hits, runs))."""
+    return fisher_exact([[a[0], a[1] - a[0]], [b[0], b[1] - b[0]]]).pvalue
+
+
+def _p(p: float) -> str:
+    """A p-value as the docs quote it: two decimals, no trailing zeros (0.48, 1)."""
+    return f"{round(p, 2):g}"
+
+
 def test_c5_is_not_observed_and_its_tests_say_why():
-    for job in ("generations=200000,k=1,setup=duo", "generations=200000,k=2,setup=duo"):
-        assert max(_summary(job)["final_score"].values()) < 6
-    per_method = fisher_exact([[0, 16], [2, 14]]).pvalue
-    pooled = fisher_exact([[0, 32], [4, 28]]).pvalue
-    assert round(per_method, 2) == 0.48 and round(pooled, 2) == 0.11
+    reached = {}
+    for k in ("1", "2"):
+        summary = _summary(f"generations=200000,k={k},setup=duo")
+        assert max(summary["final_score"].values()) < 6
+        reached[k] = _reached(summary, "6")
     row = next(line for line in REPRO.splitlines() if line.startswith("| C5 |"))
-    assert "p=0.48" in row and "p=0.11" in row and "**not observed**" in row and "refuted" not in row
+    for k in ("1", "2"):                                         # each method against the paper's 2 of 16
+        assert f"p={_p(_fisher(reached[k], PAPER_C5))}" in row
+    pooled = _fisher((sum(r for r, _ in reached.values()), sum(n for _, n in reached.values())),
+                     (2 * PAPER_C5[0], 2 * PAPER_C5[1]))
+    assert f"p={_p(pooled)} pooled" in row and "**not observed**" in row and "refuted" not in row
 
 
 def test_c3_and_c2_verdicts_match_their_tests():
-    for job in ("generations=200000,k=4,setup=solo", "generations=200000,setup=solo,team=homogeneous"):
-        assert _summary(job)["first_generation_reaching"]["4"] == {} or \
-            all(v is None for v in _summary(job)["first_generation_reaching"]["4"].values())
-    assert round(fisher_exact([[0, 16], [1, 15]]).pvalue, 2) == 1.0
     c3 = next(line for line in REPRO.splitlines() if line.startswith("| C3 |"))
+    for job in ("generations=200000,k=4,setup=solo", "generations=200000,setup=solo,team=homogeneous"):
+        reached = _reached(_summary(job), "4")                   # against the paper's "one run each reaches 4"
+        assert reached[0] == 0 and f"Fisher p={_p(_fisher(reached, PAPER_C3))}" in c3
     assert "**not observed**" in c3 and "within the interval" not in c3
     times = {}
     for k in ("1", "2"):
@@ -80,7 +103,8 @@ def test_the_baselines_sentences_hold():
     reach5 = {m: sum(r["evals_to"].get("5") is not None for r in b[("duo", m)]) for m in ("k=1", "k=2", "ccea D",
                                                                                       "ccea D++")}
     assert reach5 == {"k=1": 2, "k=2": 1, "ccea D": 1, "ccea D++": 6}
-    assert round(fisher_exact([[6, 10], [2, 14]]).pvalue, 2) == 0.22
+    runs = {m: len(b[("duo", m)]) for m in reach5}
+    dpp_vs_k1 = _fisher((reach5["ccea D++"], runs["ccea D++"]), (reach5["k=1"], runs["k=1"]))
     trio = sorted(r["final"] for r in b[("trio", "ccea D++")])
     assert trio.count(4.0) == 7 and trio.count(0.0) == 5 and trio.count(1.0) == 4
     held = {(s, m): [r["heldout"] for r in b[(s, m)]] for s in ("solo", "duo") for m in ("ccea D", "ccea D++", "k=1")}
@@ -89,7 +113,7 @@ def test_the_baselines_sentences_hold():
     assert mannwhitneyu(held[("duo", "ccea D")], held[("duo", "k=1")]).pvalue < 0.005
     text, readme = _text(BASE), _text(README)
     assert "only method that gets past" not in text and "most lose it" not in text and "hold up best" not in text
-    assert "Fisher p=0.22" in text and "7 of 16 end at 4, the other 9 at 0 (5 runs) or 1 (4 runs)" in text
+    assert f"Fisher p={_p(dpp_vs_k1)}" in text and "7 of 16 end at 4, the other 9 at 0 (5 runs) or 1 (4 runs)" in text
     assert "only method that passes" not in readme and "hold up best" not in readme
 
 

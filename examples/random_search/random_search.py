@@ -33,12 +33,12 @@ class RandomSearch(Algorithm):
         """``lam`` children per generation."""
         return float(self.lam)
 
-    def _init(self, seeds, evaluate):
-        s_init, s_mut = seeds.spawn(2)
+    def _init(self, streams, evaluate):
         shape = (self.world.n_rovers, self.world.n_params)
-        team = np.random.default_rng(s_init).uniform(self.low, self.high, shape)
-        score = evaluate(team)
-        return {"team": team, "score": score, "rng": np.random.default_rng(s_mut).bit_generator.state}, score
+        team = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, shape)
+        measured = evaluate.measure(team)                           # the score, and what the observer reads
+        return {"team": team, "score": measured.score,
+                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
 
     def _team(self, state):
         return state["team"]
@@ -50,11 +50,12 @@ class RandomSearch(Algorithm):
         best_child, after = np.empty(n), np.empty(n)
         for t in range(n):
             children = team + rng.normal(0.0, self.sigma, (self.lam, *team.shape))   # (lam, N, P)
-            evaluated = [evaluate(child) for child in children]     # what the observer reads of each child
-            scores = np.array(evaluated)
+            measured = [evaluate.measure(child) for child in children]   # scores and final positions
+            scores = np.array([m.score for m in measured])
             best = int(np.argmax(scores))
             if scores[best] >= score:
-                observer.accepted(generation + t + 1, children[best], evaluated[best], scores[best] != score)
+                observer.accepted(generation + t + 1, children[best], float(scores[best]), scores[best] != score,
+                                  measured[best].final_xy)
                 team, score = children[best], float(scores[best])
             best_child[t], after[t] = scores[best], score
         return {"team": team, "score": score, "rng": rng.bit_generator.state}, {"score": after,

@@ -1,5 +1,16 @@
 """Learners over a rover team, one plug-in each (see :mod:`rovermarl.algorithms.base`), and their operators."""
 
-from rovermarl.algorithms.base import Algorithm, AlgorithmError, Evaluated, NullObserver, Series
+from rovermarl.algorithms.base import (
+    Algorithm,
+    AlgorithmError,
+    Evaluator,
+    KernelInputs,
+    Measured,
+    NullObserver,
+    Observer,
+    Series,
+)
+from rovermarl.env.streams import RunStreams
 
-__all__ = ["Algorithm", "AlgorithmError", "Evaluated", "NullObserver", "Series"]
+__all__ = ["Algorithm", "AlgorithmError", "Evaluator", "KernelInputs", "Measured", "NullObserver", "Observer",
+           "RunStreams", "Series"]

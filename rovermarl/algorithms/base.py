@@ -4,7 +4,12 @@ An algorithm is one class plus one yaml in ``conf/algorithm/``. Hydra builds it 
 world as a keyword (``instantiate(cfg.algorithm, world=world)``). It holds no run state: a run's state is an
 explicit plain dict (arrays, numbers, nested dicts, RNG states) that :meth:`Algorithm.init` creates and
 :meth:`Algorithm.advance` threads through, so the runner can checkpoint it, ship it to another process and resume
-bit-identically. Randomness comes only from the ``SeedSequence`` the runner hands to :meth:`Algorithm.init`.
+bit-identically. Randomness comes only from the run's named streams (:class:`~rovermarl.env.streams.RunStreams`) the
+runner hands to :meth:`Algorithm.init`.
+
+What an algorithm may ask of the evaluation of its teams is :class:`Evaluator` (scores, scores with final
+positions, fresh initial conditions, trajectories, the compiled rollout's inputs), and what it tells the behaviour
+observer is :class:`Observer`; the runner passes one of each.
 
 The public methods check and normalise; subclasses implement the private ``_init``, ``_advance`` and ``_team``
 (evosax's ``ask``/``tell`` over ``_ask``/``_tell``).
@@ -18,29 +23,74 @@ Example (a run of 3 generations, in the runner's words)::
 
     world = make_world("solo")
     algo = instantiate(cfg.algorithm, world=world)      # e.g. CC11ES
-    seeds = np.random.SeedSequence(7)
-    ic = world.initial_conditions(seeds.spawn(1)[0])    # the runner's stream 0: initial conditions
-    evaluate = Evaluation(world, ic)
-    state, f0 = algo.init(seeds, evaluate)
+    evaluate = Evaluation(world, world.run_ic(7))       # run 7's initial conditions
+    state, f0 = algo.init(RunStreams(7), evaluate)
     state, arrays = algo.advance(state, 0, 3, evaluate, NullObserver())
     arrays["score"].shape, arrays["k"].shape            # ((3,), (3,))
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.env.evaluated import Evaluated
+from rovermarl.env import InitialConditions, Rollout, World
+from rovermarl.env.streams import RunStreams
 
-Evaluate = Callable[[np.ndarray], Evaluated]   # team genomes (N, P) -> score F on the run's initial conditions
-# The runner's Evaluate also has ``fresh`` (bool) and ``draw(generation)``: under ``evaluation.fresh_ic`` an
-# algorithm with ``fresh_ic = True`` calls ``draw(g)`` once per generation g and scores every team it compares on
-# that set (a plain callable has no ``fresh``: read it with ``getattr(evaluate, "fresh", False)``).
+
+class Measured(NamedTuple):
+    """A team's score F with what its evaluation measured: ``final_xy`` (E, N, 2), the rovers' final positions, or
+    None when the run keeps none (no observer reads them)."""
+
+    score: float
+    final_xy: np.ndarray | None
+
+
+class KernelInputs(NamedTuple):
+    """What a compiled generation loop needs to evaluate teams itself as the evaluation does: the world, the initial
+    conditions and the buffer (E, N, 2) for final positions (None: none kept)."""
+
+    world: World
+    ic: InitialConditions
+    final_xy: np.ndarray | None
+
+
+class Evaluator(ABC):
+    """What an algorithm may ask of the evaluation of its teams (genomes (N, P)), on the run's initial conditions.
+
+    ``fresh`` is true under ``evaluation.fresh_ic``: an algorithm with ``fresh_ic = True`` calls :meth:`draw` once
+    per generation and scores every team it compares there. ``calls`` counts the team evaluations made
+    (:meth:`score`, :meth:`measure` and :meth:`rollout` each add one; a compiled loop adds its own).
+    """
+
+    fresh: bool = False
+    calls: int = 0
+
+    @abstractmethod
+    def measure(self, genomes: np.ndarray) -> Measured:
+        """The team's score F with its final positions (what the observer reads)."""
+
+    def score(self, genomes: np.ndarray) -> float:
+        """The team's score F."""
+        return self.measure(genomes).score
+
+    @abstractmethod
+    def rollout(self, genomes: np.ndarray) -> Rollout:
+        """One team evaluation with its whole trajectories (xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)):
+        what a learner that credits rovers by counterfactuals needs."""
+
+    def draw(self, generation: int) -> None:
+        """Score on the initial conditions of ``generation`` from now on (only when :attr:`fresh`)."""
+        raise AlgorithmError(f"{type(self).__name__} draws no fresh initial conditions (evaluation.fresh_ic is off)")
+
+    def kernel_inputs(self) -> KernelInputs | None:
+        """The inputs of a compiled loop that evaluates teams itself, or None where teams are not scored in this
+        process on fixed initial conditions (then no compiled loop applies)."""
+        return None
 
 
 @dataclass(frozen=True)
@@ -71,39 +121,46 @@ class Series:
 
 
 class Observer(Protocol):
-    """What an algorithm tells the behaviour observer (see :mod:`rovermarl.record.events`) inside its loop.
+    """What an algorithm tells the behaviour observer (see :mod:`rovermarl.record.events`) inside its loop. Final
+    positions ``final_xy`` (E, N, 2) are what :meth:`Evaluator.measure` returned for that team (None when the
+    evaluation keeps none; an observer that measures positions refuses None in one line)."""
 
-    ``score`` is what ``evaluate`` returned for that team (an :class:`Evaluated`: the observer reads its final
-    positions there), not a float made of it; a float is refused in one line when the observer measures positions.
-    """
+    def evaluated(self, mutated: np.ndarray, final_xy: np.ndarray | None) -> int:
+        """A team that changed the rovers ``mutated`` (N,) bool of the parent team was evaluated, its rovers ending
+        at ``final_xy``; returns the number of episodes in which another rover ends at another POI than under the
+        parent team (-1: not measured)."""
 
-    def evaluated(self, mutated: np.ndarray, score: Evaluated) -> int:
-        """A team that changed the rovers ``mutated`` (N,) bool of the parent team was evaluated (``score``); returns
-        the number of episodes in which another rover ends at another POI than under the parent team (-1: not
-        measured)."""
+    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool,
+                 final_xy: np.ndarray | None) -> None:
+        """The team genomes (N, P), evaluated as ``score`` with its rovers ending at ``final_xy``, became the parent
+        team at ``generation``."""
 
-    def accepted(self, generation: int, genomes: np.ndarray, score: Evaluated, score_changed: bool) -> None:
-        """The team genomes (N, P), evaluated as ``score``, became the parent team at ``generation``."""
+    def switch_inputs(self) -> tuple | None:
+        """What :meth:`evaluated` compares, for a compiled loop that measures it itself: ``(parent_poi (E, N),
+        poi_xy (P, 2), radius)``, or None when nothing is measured."""
 
 
 class NullObserver:
     """An observer that measures nothing (``evaluated`` returns -1)."""
 
-    def evaluated(self, mutated: np.ndarray, score: Evaluated) -> int:
+    def evaluated(self, mutated: np.ndarray, final_xy: np.ndarray | None) -> int:
         return -1
 
     def switch_inputs(self) -> None:
-        """Nothing to compare (see :meth:`BehaviourObserver.switch_inputs
-        <rovermarl.record.events.BehaviourObserver.switch_inputs>`)."""
+        """Nothing to compare."""
         return None
 
-    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
+    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool,
+                 final_xy: np.ndarray | None) -> None:
         pass
 
 
 # Names a run's arrays already use (curve.npz, the runner's record, the observer's files): no series may take them.
 RESERVED = frozenset({"score", "seed", "genomes", "ic_xy", "ic_heading", "ic_layout", "heldout_score", "initial_score"})
 RESERVED_PREFIXES = ("behaviour_", "occupancy_")
+
+
+LOOPS = ("auto", "python", "compiled")   # algorithm.loop: which generation loop runs (an algorithm with one)
 
 
 class AlgorithmError(Exception):
@@ -114,8 +171,8 @@ class Algorithm:
     """Base class of a learner over a team of N rovers, each with a genome of P parameters.
 
     Subclasses set :attr:`series` (in ``__init__`` if it depends on the config) and implement ``_init``,
-    ``_advance`` and ``_team``. One that honours ``evaluation.fresh_ic`` (``evaluate.fresh``: call
-    ``evaluate.draw(g)`` each generation, re-score the parents there) sets :attr:`fresh_ic`; the runner refuses
+    ``_advance`` and ``_team``. One that honours ``evaluation.fresh_ic`` (:attr:`Evaluator.fresh`: call
+    :meth:`Evaluator.draw` each generation, re-score the parents there) sets :attr:`fresh_ic`; the runner refuses
     ``evaluation.fresh_ic=true`` for the others.
     """
 
@@ -126,13 +183,14 @@ class Algorithm:
         self.world = world
 
     # ---- public API ------------------------------------------------------------------------------------------
-    def init(self, seeds: np.random.SeedSequence, evaluate: Evaluate) -> tuple[dict, float]:
-        """A fresh run's state and its initial team's score. ``seeds`` is the run's ``SeedSequence`` after the
-        runner took its own streams; spawn the algorithm's streams from it."""
-        state, score = self._init(seeds, evaluate)
-        return state, score if isinstance(score, Evaluated) else float(score)
+    def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[dict, Measured]:
+        """A fresh run's state and its initial team's score with its final positions (``_init`` may return the
+        :class:`Measured` ``evaluate`` gave, or a float: then no positions). ``streams`` are the run's named random
+        streams (its ``algorithm``, ``mutation`` and ``selector`` ones are the algorithm's)."""
+        state, score = self._init(streams, evaluate)
+        return state, score if isinstance(score, Measured) else Measured(float(score), None)
 
-    def advance(self, state: dict, generation: int, n: int, evaluate: Evaluate,
+    def advance(self, state: dict, generation: int, n: int, evaluate: Evaluator,
                 observer: Observer) -> tuple[dict, dict[str, np.ndarray]]:
         """Advance ``state`` (at ``generation``) by ``n`` generations.
 
@@ -163,13 +221,18 @@ class Algorithm:
                                          "under a name that is taken (" + ", ".join(sorted(RESERVED)) +
                                          ", behaviour_*, occupancy_*, or another series)")
 
+    def check_run(self, fresh_ic: bool, local: bool) -> None:
+        """Refuse (:class:`~rovermarl.errors.ConfigError`, one line) a run this algorithm cannot honour as
+        configured: under ``evaluation.fresh_ic`` (``fresh_ic``), or with teams scored in other processes (``local``
+        false: ``parallel.ic_shards`` > 1). The runner calls it before any work."""
+
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         """Team evaluations one generation costs (``fresh_ic``: under ``evaluation.fresh_ic``): what the runner's
         time estimate and the comparisons at equal evaluations assume. Override it when it is not 1."""
         return 1.0
 
     # ---- to implement ----------------------------------------------------------------------------------------
-    def _init(self, seeds, evaluate):
+    def _init(self, streams: RunStreams, evaluate: Evaluator):
         raise NotImplementedError
 
     def _advance(self, state, generation, n, evaluate, observer):

@@ -5,8 +5,12 @@ Its operators are config groups of their own: ``k`` (fixed or a k-selector such 
 (heterogeneous or homogeneous), ``mutation`` and ``selection`` (soft or strict).
 
 Run state (a plain dict): ``parents`` (M, P) (M = N, or 1 for a homogeneous team), ``score`` (the parents' F),
-the bit-generator states ``rng_mut`` (which rovers, which changes) and ``rng_sel`` (the selector's draws), and the
-selector's ``state_dict``.
+the bit-generator states ``rng_mut`` (which rovers, which changes: the run's ``mutation`` stream) and ``rng_sel`` (the
+selector's draws: its ``selector`` stream), and the selector's ``state_dict``.
+
+``loop`` (``algorithm.loop``) chooses the generation loop: ``python`` runs :meth:`CC11ES._advance`'s steps 1-7 below,
+``compiled`` the same steps in numba (:mod:`rovermarl.algorithms.compiled`, bit-identical; refused in one line where
+it does not apply), ``auto`` (the default) the compiled one wherever it applies.
 """
 
 from __future__ import annotations
@@ -17,7 +21,7 @@ import numpy as np
 
 from rovermarl import errors
 from rovermarl.algorithms import compiled
-from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, Series, build_operator, generator
 
 
 class CC11ES(Algorithm):
@@ -29,10 +33,11 @@ class CC11ES(Algorithm):
     """
 
     fresh_ic = True
-    loop = "auto"      # "auto": the compiled loop where it applies (rovermarl.algorithms.compiled); "python": never
 
-    def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0):
+    def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0,
+                 loop: str = "auto"):
         super().__init__(world)
+        self.loop = errors.choice("loop", loop, LOOPS)
         n = world.n_rovers
         self.low = errors.number("policy.init_low", init_low)
         self.high = errors.number("policy.init_high", init_high)
@@ -54,27 +59,38 @@ class CC11ES(Algorithm):
         if self.selector.probs is not None:
             self.series += (Series("probs", "float64", (len(arms),), np.nan, "the selector's probability of each k "
                                    "before the generation", tuple(f"k{a}" for a in arms), "bandit"),)
+        if self.loop == "compiled":
+            self.check_run(fresh_ic=False, local=True)
+
+    def check_run(self, fresh_ic: bool, local: bool) -> None:
+        why = compiled.refusal(self, fresh_ic, local) if self.loop == "compiled" else None
+        if why:
+            raise errors.ConfigError("loop", "compiled", why)
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return 2.0 if fresh_ic else 1.0                                   # fresh ICs: the parents scored again
 
-    def _init(self, seeds, evaluate):
-        s_init, s_mut, s_sel = seeds.spawn(3)
-        parents = self.composition.init(self.world.n_params, self.low, self.high, np.random.default_rng(s_init))
-        score = evaluate(self.composition.genomes(parents))
-        return {"parents": parents, "score": score, "rng_mut": np.random.default_rng(s_mut).bit_generator.state,
-                "rng_sel": np.random.default_rng(s_sel).bit_generator.state,
-                "selector": copy.deepcopy(self.selector).state_dict()}, score
+    def _init(self, streams, evaluate):
+        parents = self.composition.init(self.world.n_params, self.low, self.high,
+                                        np.random.default_rng(streams.algorithm))
+        measured = evaluate.measure(self.composition.genomes(parents))
+        return {"parents": parents, "score": measured.score,
+                "rng_mut": np.random.default_rng(streams.mutation).bit_generator.state,
+                "rng_sel": np.random.default_rng(streams.selector).bit_generator.state,
+                "selector": copy.deepcopy(self.selector).state_dict()}, measured
 
     def _team(self, state):
         return self.composition.genomes(state["parents"])
 
     def _advance(self, state, generation, n, evaluate, observer):
-        if self.loop == "auto" and compiled.supports(self, evaluate, observer):
-            return compiled.advance(self, state, generation, n, evaluate, observer)
+        if self.loop != "python":
+            why = compiled.refusal(self, evaluate.fresh, evaluate.kernel_inputs() is not None)
+            if why is None:
+                return compiled.advance(self, state, generation, n, evaluate, observer)
+            if self.loop == "compiled":
+                raise AlgorithmError(f"algorithm.loop=compiled: {why}")
         team, mutate, accept = self.composition, self.mutate, self.accept
         selector, rng_mut, rng_sel, parents, f_parent, h = self._start(state, n)
-        fresh = getattr(evaluate, "fresh", False)                             # evaluation.fresh_ic
         for t in range(n):
             g = generation + t
             if "probs" in h:
@@ -83,15 +99,15 @@ class CC11ES(Algorithm):
             chosen = team.pick(k, rng_mut)                                    # 2. k distinct rovers
             children = team.mutate(parents, chosen, mutate, rng_mut)          # 3. mutate them
             genomes = team.genomes(children)                                  # (N, P): the team the world sees
-            if fresh:                                                         #    fresh ICs: a new draw, the
+            if evaluate.fresh:                                                #    fresh ICs: a new draw, the
                 evaluate.draw(g + 1)                                          #    parents scored on it too
-                f_parent = evaluate(team.genomes(parents))
-            f_child = evaluate(genomes)                                       # 4. evaluate the team
-            h["switched"][t] = observer.evaluated(team.mutated(chosen), f_child)   # did unmutated rovers switch POI?
+                f_parent = evaluate.score(team.genomes(parents))
+            f_child, final_xy = evaluate.measure(genomes)                     # 4. evaluate the team
+            h["switched"][t] = observer.evaluated(team.mutated(chosen), final_xy)  # did unmutated rovers switch POI?
             accepted = accept(f_child, f_parent)                              # 5. all k children or none
             selector.update(k, f_child, f_parent)                             # 6. reward the selector
             if accepted:                                                      # 7. the observer logs the change
-                observer.accepted(g + 1, genomes, f_child, f_child != f_parent)
+                observer.accepted(g + 1, genomes, f_child, f_child != f_parent, final_xy)
                 parents, f_parent = children, f_child
             h["k"][t], h["accepted"][t], h["child_score"][t], h["score"][t] = k, accepted, f_child, f_parent
         return self._state(parents, f_parent, rng_mut, rng_sel, selector), h

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series, build_operator, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, Series, build_operator, generator
 from rovermarl.algorithms.credit import CREDITS, credit
 
 
@@ -33,8 +33,11 @@ class CCEA(Algorithm):
     :data:`~rovermarl.algorithms.credit.CREDITS`), the ``mutation`` node and the initial genome range."""
 
     def __init__(self, world, mutation, pop_size: int = 10, elites: int = 1, reward: str = "global",
-                 init_low: float = -2.0, init_high: float = 2.0):
+                 init_low: float = -2.0, init_high: float = 2.0, loop: str = "auto"):
         super().__init__(world)
+        if errors.choice("loop", loop, LOOPS) == "compiled":
+            raise errors.ConfigError("loop", loop, "the CCEA has no compiled generation loop (auto and python run "
+                                     "its Python one)")
         self.pop_size = errors.integer("pop_size", pop_size, 2, 100_000)
         self.elites = errors.integer("elites", elites, 1, self.pop_size - 1)   # slot 0: the best
         self.reward = errors.choice("reward", reward, CREDITS)
@@ -52,21 +55,17 @@ class CCEA(Algorithm):
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return self.pop_size + 1.0
 
-    def _init(self, seeds, evaluate):
-        s_init, s_run = seeds.spawn(2)
+    def _init(self, streams, evaluate):
         size = (self.world.n_rovers, self.pop_size, self.world.n_params)
-        pops = np.random.default_rng(s_init).uniform(self.low, self.high, size)
-        score = evaluate(_elites(pops))
-        return {"pops": pops, "score": score, "best": score, "evals": 1,
-                "rng": np.random.default_rng(s_run).bit_generator.state}, score
+        pops = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, size)
+        measured = evaluate.measure(_elites(pops))
+        return {"pops": pops, "score": measured.score, "best": measured.score, "evals": 1,
+                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
 
     def _team(self, state):
         return _elites(state["pops"])
 
     def _advance(self, state, generation, n, evaluate, observer):
-        if self.reward != "global" and not hasattr(evaluate, "rollout"):
-            raise AlgorithmError(f"ccea with reward={self.reward} needs whole trajectories, which this evaluation "
-                                 f"({type(evaluate).__name__}) does not give; use parallel.ic_shards=1")
         rng = generator(state["rng"])
         pops, best, evals = np.array(state["pops"], dtype=np.float64), float(state["best"]), int(state["evals"])
         score, h = np.empty(n), {s.name: s.empty(n) for s in self.series}
@@ -75,10 +74,10 @@ class CCEA(Algorithm):
             fitness = self._fitness(pops, teams, evaluate)                                  # 2. credit
             pops, h["fitness"][t] = self._select(pops, fitness, rng)                        # 3. select, mutate
             team = _elites(pops)
-            f = evaluate(team)                                                              # 4. the elites team
+            f, final_xy = evaluate.measure(team)                                            # 4. the elites team
             evals += self.pop_size + 1
-            observer.accepted(generation + t + 1, team, f, f > best)
-            best = max(best, float(f))
+            observer.accepted(generation + t + 1, team, f, f > best, final_xy)
+            best = max(best, f)
             score[t], h["team_evals"][t] = f, evals
         state = {"pops": pops, "score": score[-1] if n else state["score"], "best": best, "evals": evals,
                  "rng": rng.bit_generator.state}
@@ -92,7 +91,7 @@ class CCEA(Algorithm):
         for j in range(self.pop_size):
             genomes = pops[rovers, teams[:, j]]
             if self.reward == "global":
-                fitness[rovers, teams[:, j]] = evaluate(genomes)
+                fitness[rovers, teams[:, j]] = evaluate.score(genomes)
             else:
                 roll = evaluate.rollout(genomes)
                 fitness[rovers, teams[:, j]] = credit(self.reward, self.world, roll.xy, roll.returns).mean(axis=1)

@@ -2,9 +2,9 @@
 :mod:`rovermarl.algorithms.cc11es`, which stays for every other plug-in.
 
 The common case: k fixed or EXP3 (``k=1..N``, ``k=adaptive``), the mixed mutation, soft or strict selection, a
-heterogeneous or homogeneous team, scored in this process on the run's initial conditions (not fresh ones, not IC
-shards), with the runner's behaviour observer or none. :func:`supports` says whether a run is in it; the choice is
-automatic.
+heterogeneous or homogeneous team (exactly the classes of :data:`OPERATORS`), the paper's world, scored in this process
+on the run's initial conditions (not fresh ones, not IC shards). :func:`refusal` says why a run is not in it (None:
+it is); ``algorithm.loop`` chooses (``auto``: this loop wherever it applies).
 
 Both loops run the same rules: the compiled one calls the operators' own numba functions (``draw_arm``,
 ``exp3_update``, ``bandit_reward``, ``pick_distinct``, ``mixed``, ``keeps``), the world's kernel and its
@@ -21,7 +21,6 @@ from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
 from rovermarl.algorithms.operators.selection import Selection, keeps
 from rovermarl.algorithms.operators.selectors import EXP3, FixedK, bandit_reward, draw_arm, exp3_update
 from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTeam, pick_distinct
-from rovermarl.env.evaluated import Evaluated
 from rovermarl.env.kernel import rollout, score, switched
 from rovermarl.jit import njit
 
@@ -29,17 +28,29 @@ _NO_FINAL = np.empty((0, 1, 2))
 _NO_POI, _NO_PROBS = np.empty((0, 1), dtype=np.int16), np.empty((0, 1))
 
 
-def supports(algo, evaluate, observer) -> bool:
-    """Whether the compiled loop runs CC11ES ``algo`` with this evaluation and observer: exactly the common
-    operators (subclasses may change any rule, so they take the Python loop), a local evaluation on fixed initial
-    conditions (``evaluate.kernel_inputs``) in the paper's world (a world plug-in has its own compiled rollout, which
-    this loop does not call: it takes the Python loop) and an observer that says what it measures
-    (``observer.switch_inputs``)."""
-    return (type(algo.selector) in (FixedK, EXP3) and type(algo.mutate) is MixedMutation
-            and type(algo.accept) is Selection and type(algo.composition) in (HeterogeneousTeam, HomogeneousTeam)
-            and not getattr(evaluate, "fresh", False) and callable(getattr(evaluate, "kernel_inputs", None))
-            and evaluate.kernel_inputs()[0].compiled.rollout is rollout      # the paper's world (a plug-in's: Python)
-            and callable(getattr(observer, "switch_inputs", None)))
+# The operator classes the compiled loop runs, by the CC11ES attribute that holds each (subclasses may change any
+# rule, so they take the Python loop). tests/test_compiled_loop.py runs the differential test on each of them.
+OPERATORS = {"selector": (FixedK, EXP3), "mutate": (MixedMutation,), "accept": (Selection,),
+             "composition": (HeterogeneousTeam, HomogeneousTeam)}
+
+
+def refusal(algo, fresh: bool, local: bool) -> str | None:
+    """Why the compiled loop cannot run CC11ES ``algo`` (None: it can): under ``evaluation.fresh_ic`` (``fresh``),
+    with teams not scored in this process (``local`` false: IC shards), on a world plug-in, or with an operator
+    that is not exactly one of :data:`OPERATORS`."""
+    for attr, classes in OPERATORS.items():
+        op = getattr(algo, attr)
+        if type(op) not in classes:
+            return (f"it runs only the packaged operators {', '.join(c.__name__ for c in classes)} as "
+                    f"{attr}, not {type(op).__module__}.{type(op).__name__} (the Python loop runs any)")
+    if algo.world.compiled.rollout is not rollout:
+        return "a world plug-in has its own compiled rollout, which the compiled loop does not call"
+    if fresh:
+        return "under evaluation.fresh_ic every generation draws new initial conditions; the compiled loop scores " \
+               "on fixed ones"
+    if not local:
+        return "IC shards (parallel.ic_shards > 1) score teams in other processes; the compiled loop scores here"
+    return None
 
 
 def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> tuple[dict, dict]:
@@ -66,8 +77,8 @@ def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> t
             *args, final, parent_poi, poi_xy, radius,
             h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", _NO_PROBS))
         if t > 0 and h["accepted"][t - 1]:                   # the generation that stopped the call kept its team
-            accepted = Evaluated(f_parent, None if final_xy is None else final_xy.copy())   # its final positions
-            observer.accepted(generation + t, team.genomes(parents.copy()), accepted, f_parent != f_before)
+            observer.accepted(generation + t, team.genomes(parents.copy()), f_parent, f_parent != f_before,
+                              None if final_xy is None else final_xy.copy())          # its final positions
     evaluate.calls += n
     if exp3:
         selector.load_state_dict({"log_w": log_w})                  # its probabilities: the same function's

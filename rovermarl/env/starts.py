@@ -7,7 +7,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-HELDOUT_STREAM = 2**31   # spawn key of a run's held-out stream in SeedSequence(seed); runs spawn 0, 1, 2, ...
+from rovermarl.env.streams import RunStreams
 
 
 class InitialConditions(NamedTuple):
@@ -61,17 +61,16 @@ class Starts:
         return InitialConditions(np.ascontiguousarray(xy), np.ascontiguousarray(heading), layout)
 
     def run_ic(self, seed: int, generation: int = 0) -> InitialConditions:
-        """The initial conditions run ``seed`` is scored on: stream 0 of ``SeedSequence(seed)`` (SPEC section 5).
-        Under ``evaluation.fresh_ic`` generation ``g >= 1`` draws its own set from child ``g`` of that stream.
+        """The initial conditions run ``seed`` is scored on (SPEC section 5); under ``evaluation.fresh_ic`` generation
+        ``g >= 1`` draws its own set (its streams: :mod:`rovermarl.env.streams`).
 
         >>> w = make_world("solo")
         >>> [a.shape for a in w.run_ic(3)], bool((w.run_ic(3, 1)[0] != w.run_ic(3)[0]).all())
         ([(16, 4, 2), (16, 4)], True)
         """
-        key = (0,) if generation == 0 else (0, int(generation))
-        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=key))
+        return self.initial_conditions(RunStreams(int(seed)).initial_conditions(generation))
 
     def heldout_ic(self, seed: int, n: int = 256) -> InitialConditions:
         """``n`` initial conditions of run ``seed`` that its algorithm never sees, from a stream of their own
-        (spawn key :data:`HELDOUT_STREAM` of ``SeedSequence(seed)``): the held-out score's."""
-        return self.initial_conditions(np.random.SeedSequence(int(seed), spawn_key=(HELDOUT_STREAM,)), n=n)
+        (:mod:`rovermarl.env.streams`): the held-out score's."""
+        return self.initial_conditions(RunStreams(int(seed)).heldout, n=n)

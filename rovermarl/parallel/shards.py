@@ -11,8 +11,8 @@ import numpy as np
 import ray
 from omegaconf import OmegaConf
 
-from rovermarl.env import World
-from rovermarl.env.evaluated import Evaluated
+from rovermarl.algorithms.base import Evaluator, Measured
+from rovermarl.env import Rollout, World
 from rovermarl.env.world import score
 from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
@@ -37,12 +37,16 @@ class ShardActor:
         final = np.empty(self.ic[0].shape)
         return self.world.returns(genomes, self.ic, final), final
 
+    def rollout(self, genomes: np.ndarray) -> Rollout:
+        """genomes (N, P) -> the slice's trajectories (:meth:`World.rollout`)."""
+        return self.world.rollout(genomes, self.ic)
 
-class ShardedEvaluation:
-    """An evaluation over shard actors, with the same results as local evaluation
-    (:class:`rovermarl.runner.chunk.Evaluation`): ``evaluate(genomes (N, P)) -> F``; with ``keep_final``,
-    each score an ``Evaluated`` with the team's final positions (E, N, 2); ``fresh_seed`` and :meth:`draw` as
-    there (each actor draws its slice of a generation's initial conditions itself)."""
+
+class ShardedEvaluation(Evaluator):
+    """An :class:`~rovermarl.algorithms.base.Evaluator` over shard actors, with the same results as local evaluation
+    (:class:`rovermarl.runner.chunk.Evaluation`): with ``keep_final`` :meth:`measure` gives the team's final
+    positions (E, N, 2); ``fresh_seed`` and :meth:`draw` as there (each actor draws its slice of a generation's initial
+    conditions itself). It gives no :meth:`kernel_inputs` (teams are scored in other processes)."""
 
     def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.actors, self.seed = actors, fresh_seed
@@ -55,18 +59,26 @@ class ShardedEvaluation:
                                                                                        strict=True)])
 
     def draw(self, generation: int) -> None:
+        if not self.fresh:
+            super().draw(generation)
         ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, (lo, hi) in zip(self.actors, self.slices,
                                                                                        strict=True)])
 
-    def __call__(self, genomes: np.ndarray) -> Evaluated:
+    def measure(self, genomes: np.ndarray) -> Measured:
         self.calls += 1
         genomes = np.ascontiguousarray(genomes)                         # small: sent inline with each call
         parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
         if self.final_xy is None:
-            return Evaluated(score(returns), None)
+            return Measured(score(returns), None)
         self.final_xy[...] = np.concatenate([f for _, f in parts])
-        return Evaluated(score(returns), self.final_xy.copy())
+        return Measured(score(returns), self.final_xy.copy())
+
+    def rollout(self, genomes: np.ndarray) -> Rollout:
+        """The slices' trajectories, concatenated in order: the local rollout's, episode by episode."""
+        self.calls += 1
+        parts = ray.get([a.rollout.remote(np.ascontiguousarray(genomes)) for a in self.actors])
+        return Rollout(*(np.concatenate(arrays) for arrays in zip(*parts, strict=True)))
 
 
 def run_sharded(cfg, job: dict, records, on_chunk, advance) -> None:

@@ -28,9 +28,9 @@ class BehaviourObserver:
     """Measures a run's behaviour from the evaluations its algorithm makes (see the module doc).
 
     Built on the world, the run's initial conditions ``ic`` and the ``record`` switches (``occupancy``,
-    ``behaviour``; on if absent). It reads a team's final positions from the score its evaluation returned
-    (:class:`~rovermarl.env.evaluated.Evaluated`, passed to :meth:`evaluated` and :meth:`accepted`); its own buffers
-    hold the parent team's.
+    ``behaviour``; on if absent). It is told a team's final positions (E, N, 2) explicitly, as its evaluation
+    measured them (:meth:`Evaluator.measure <rovermarl.algorithms.base.Evaluator.measure>`, passed to
+    :meth:`evaluated` and :meth:`accepted`); its own buffers hold the parent team's.
     """
 
     def __init__(self, world, ic, cfg, changes: bool = True):
@@ -64,21 +64,21 @@ class BehaviourObserver:
         _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
         return out
 
-    def evaluated(self, mutated: np.ndarray, score) -> int:
-        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated as
-        ``score`` (what ``evaluate`` returned) than under the parents; -1 if every rover was mutated or occupancy is
+    def evaluated(self, mutated: np.ndarray, final_xy: np.ndarray | None) -> int:
+        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated with its
+        rovers ending at ``final_xy`` (E, N, 2) than under the parents; -1 if every rover was mutated or occupancy is
         off."""
         if not self.occupancy_on:
             return -1
-        return switched(self._final_xy(score), self.world.poi_xy, self._radius, self.parent_poi, mutated)
+        return switched(self._final_xy(final_xy), self.world.poi_xy, self._radius, self.parent_poi, mutated)
 
-    def _final_xy(self, score) -> np.ndarray:
-        """The final positions (E, N, 2) the evaluation returned with ``score``; a float is refused in one line."""
-        xy = getattr(score, "final_xy", None)
-        if xy is None:
-            raise AlgorithmError(f"the behaviour observer was given score {float(score)!r} ({type(score).__name__}) "
-                                 "without its evaluation's final positions: pass on the value evaluate returned")
-        return xy
+    @staticmethod
+    def _final_xy(final_xy: np.ndarray | None) -> np.ndarray:
+        """The final positions (E, N, 2) an algorithm passed on; None is refused in one line."""
+        if final_xy is None:
+            raise AlgorithmError("the behaviour observer was told of a team without its final positions: pass on "
+                                 "the final_xy of evaluate.measure(genomes)")
+        return final_xy
 
     def switch_inputs(self) -> tuple | None:
         """What :meth:`evaluated` compares, for a compiled loop that measures it itself
@@ -86,15 +86,16 @@ class BehaviourObserver:
         when nothing is measured."""
         return (self.parent_poi, self.world.poi_xy, self._radius) if self.occupancy_on else None
 
-    def start(self, genomes: np.ndarray, score: float) -> None:
-        """Generation 0: the initial team (genomes (N, P)) was just evaluated."""
-        self.accepted(0, genomes, score, True)
+    def start(self, genomes: np.ndarray, score: float, final_xy: np.ndarray | None) -> None:
+        """Generation 0: the initial team (genomes (N, P)) was just evaluated (``score``, ``final_xy`` (E, N, 2))."""
+        self.accepted(0, genomes, score, True, final_xy)
 
-    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool) -> None:
-        """The team genomes (N, P), evaluated as ``score`` (what ``evaluate`` returned), became the parent at
-        ``generation``."""
+    def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool,
+                 final_xy: np.ndarray | None) -> None:
+        """The team genomes (N, P), evaluated as ``score`` with its rovers ending at ``final_xy`` (E, N, 2), became
+        the parent at ``generation``."""
         if self.occupancy_on:
-            self.parent_xy[...] = self._final_xy(score)
+            self.parent_xy[...] = self._final_xy(final_xy)
             self.observed(self.parent_xy, self.parent_poi)
             count = self.occupancy(self.parent_xy)
             if self.count is None or not np.array_equal(count, self.count):

@@ -1,9 +1,9 @@
 """One chunk of one run: advance run ``seed`` of a config from a state by n generations (any algorithm).
 
-A run is a pure function of ``(config, seed)``. Its ``SeedSequence(seed)`` gives stream 0 to the initial conditions
-(drawn here, the same in every chunk; :meth:`World.run_ic <rovermarl.env.World.run_ic>`) and the next ones to the
-algorithm. The ``evaluation`` section of the config says how teams are scored: ``fresh_ic`` (SPEC section 8: a new
-set of initial conditions every generation) and ``heldout`` (how many held-out initial conditions score the final
+A run is a pure function of ``(config, seed)``. Its named random streams (:mod:`rovermarl.env.streams`) give the
+initial conditions (drawn here, the same in every chunk; :meth:`World.run_ic <rovermarl.env.World.run_ic>`) and the
+algorithm's streams. The ``evaluation`` section of the config says how teams are scored: ``fresh_ic`` (SPEC section 8:
+a new set of initial conditions every generation) and ``heldout`` (how many held-out initial conditions score the final
 team, :meth:`World.heldout_ic <rovermarl.env.World.heldout_ic>`). :func:`advance` rebuilds the run from its
 compact state, advances it and returns the chunk; Ray can therefore rerun a chunk on another worker after a crash
 and get the same numbers. Evaluation is passed in (local by default, IC shards from :mod:`rovermarl.parallel`).
@@ -19,13 +19,13 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import errors
-from rovermarl.algorithms.base import Algorithm, build_operator
-from rovermarl.env import World
-from rovermarl.env.evaluated import Evaluated
+from rovermarl.algorithms.base import Algorithm, Evaluator, KernelInputs, Measured, build_operator
+from rovermarl.env import Rollout, World
+from rovermarl.env.streams import RunStreams
 from rovermarl.record.events import BehaviourObserver
 from rovermarl.resources import CONF_DIR, packaged
 
-EvaluationFactory = Callable[..., "Evaluation"]   # (world, ic, keep_final, fresh_seed) -> Evaluation
+EvaluationFactory = Callable[..., Evaluator]   # (world, ic, keep_final, fresh_seed) -> Evaluator
 EVALUATION = packaged("config.yaml")["evaluation"]   # its defaults, also for configs from before the section
 
 
@@ -100,12 +100,11 @@ def parts(cfg: dict) -> Parts:
     return _CACHE[key]
 
 
-class Evaluation:
-    """``evaluate(genomes (N, P)) -> F`` on a run's initial conditions, in this process: an
-    :class:`~rovermarl.env.evaluated.Evaluated` carrying the team's final positions (E, N, 2) with ``keep_final``
-    (:attr:`final_xy` is the buffer they are written to). With ``fresh_seed`` (the run's
-    seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and :meth:`draw` moves to a generation's own set.
-    :attr:`calls` counts the team evaluations."""
+class Evaluation(Evaluator):
+    """The :class:`~rovermarl.algorithms.base.Evaluator` of a run in this process: teams scored on the run's initial
+    conditions ``ic``, their final positions (E, N, 2) kept with ``keep_final`` (:attr:`final_xy` is the buffer they
+    are written to). With ``fresh_seed`` (the run's seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and
+    :meth:`draw` moves to a generation's own set."""
 
     def __init__(self, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.world, self.ic, self.seed = world, ic, fresh_seed
@@ -115,21 +114,25 @@ class Evaluation:
 
     def draw(self, generation: int) -> None:
         """Score on the initial conditions of ``generation`` from now on (:meth:`World.run_ic`)."""
+        if not self.fresh:
+            super().draw(generation)
         self.ic = self.world.run_ic(self.seed, generation)
 
-    def __call__(self, genomes: np.ndarray) -> float:
+    def score(self, genomes: np.ndarray) -> float:
+        self.calls += 1
+        return self.world.evaluate(genomes, self.ic)
+
+    def measure(self, genomes: np.ndarray) -> Measured:
         self.calls += 1
         score = self.world.evaluate(genomes, self.ic, self.final_xy)
-        return Evaluated(score, None if self.final_xy is None else self.final_xy.copy())
+        return Measured(score, None if self.final_xy is None else self.final_xy.copy())
 
-    def kernel_inputs(self) -> tuple:
-        """``(world, ic, final_xy)``: what a compiled generation loop needs to evaluate teams itself, as this does
-        (it adds its evaluations to :attr:`calls`)."""
-        return self.world, self.ic, self.final_xy
+    def kernel_inputs(self) -> KernelInputs:
+        """What a compiled generation loop needs to evaluate teams itself, as this does (it adds its evaluations to
+        :attr:`calls`)."""
+        return KernelInputs(self.world, self.ic, self.final_xy)
 
-    def rollout(self, genomes: np.ndarray):
-        """One team evaluation with its whole trajectories (:class:`~rovermarl.env.Rollout`: xy (E, T+1, N, 2),
-        heading (E, T+1, N), returns (E,)): what a learner that credits rovers by counterfactuals needs."""
+    def rollout(self, genomes: np.ndarray) -> Rollout:
         self.calls += 1
         return self.world.rollout(genomes, self.ic)
 
@@ -146,8 +149,7 @@ class Run:
         plain = cfg if isinstance(cfg, dict) else to_plain(cfg)
         self.parts = p = parts(plain)
         self.seed, self.generations = int(seed), int(plain["generations"])
-        seeds = np.random.SeedSequence(self.seed)
-        seeds.spawn(1)                                                    # stream 0: the initial conditions
+        streams = RunStreams(self.seed)                                   # the run's random streams, named
         self.ic = p.world.run_ic(self.seed)
         fresh = p.evaluation["fresh_ic"]
         record = {**p.record, "occupancy": False} if fresh else p.record  # positions on other ICs: not comparable
@@ -155,8 +157,9 @@ class Run:
         self.evaluate = evaluation(p.world, self.ic, self.observer.needs_final, self.seed if fresh else None)
         if state is None:
             self.generation = 0
-            self.algo_state, self.initial_score = p.algorithm.init(seeds, self.evaluate)
-            self.observer.start(self.team, self.initial_score)
+            self.algo_state, initial = p.algorithm.init(streams, self.evaluate)
+            self.initial_score = initial.score
+            self.observer.start(self.team, initial.score, initial.final_xy)
         else:
             self.generation, self.algo_state = int(state["generation"]), state["algorithm"]
             self.initial_score = None

@@ -76,6 +76,10 @@ def validate(cfg: DictConfig) -> None:
         raise errors.ConfigError(key, None, what) from None
     built = parts(plain)                               # builds world and algorithm once; the job reuses them
     built.algorithm.check_series()
+    try:
+        built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.get("ic_shards", 1) == 1)
+    except errors.ConfigError as e:
+        raise e.under("algorithm") from None
     budget.check(plain, series_bytes(built.algorithm.series),
                  built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
 
