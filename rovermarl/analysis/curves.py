@@ -95,7 +95,7 @@ def read_exported(job_dir: Path, seeds: int | None = None, generations: int | No
     z = load_npz(Path(job_dir) / "curves.npz", {
         "seed": Spec((r,), "iu", 1 << 16), "generations": Spec((), "iu"), "step_run": Spec((None,), "iu", steps),
         "step_generation": Spec((None,), "iu", steps), "step_score": Spec((None,), "f", steps),
-        "grid": Spec((None,), "iu", GRID_POINTS + 1), "probs": Spec((r, None, None), "f", max(GRID_POINTS + 1, 64))},
+        "grid": Spec((None,), "iu", GRID_POINTS + 1), "score": Spec((r, None), "f", max(GRID_POINTS + 1, 1 << 16)), "probs": Spec((r, None, None), "f", max(GRID_POINTS + 1, 64))},
         required=("seed", "generations", "step_run", "step_generation", "step_score", "grid"))
     curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
     return Exported(curves, z["grid"], z.get("probs"))

@@ -190,6 +190,11 @@ def _check_form(rec: RunRecord, template: dict, done: int) -> None:
                              f"{done + 2})")
 
 
+def _kind(value) -> type:
+    """The JSON kind of a plain value (a float subclass such as Evaluated is a float)."""
+    return next((t for t in (bool, int, float, str) if isinstance(value, t)), type(value))
+
+
 def _same(got, want, where: str) -> None:
     """Raise ValueError unless ``got`` has the form of ``want``: the same keys, lengths, Python types, strings,
     array shapes and dtypes, and finite numbers wherever ``want`` has them."""
@@ -210,7 +215,7 @@ def _same(got, want, where: str) -> None:
                              f"not {want.shape} {want.dtype}")
         if got.dtype.kind == "f" and not (np.isfinite(got) | ~np.isfinite(want)).all():
             raise ValueError(f"{where}: non-finite values")
-    elif type(got) is not type(want):
+    elif _kind(got) != _kind(want):
         raise ValueError(f"{where}: a {type(got).__name__}, not a {type(want).__name__}")
     elif isinstance(want, str) and got != want:
         raise ValueError(f"{where}: {got[:40]!r}, not {want!r}")
