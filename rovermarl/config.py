@@ -10,6 +10,7 @@ import contextlib
 import re
 from pathlib import Path
 
+import yaml
 from omegaconf import DictConfig
 
 from rovermarl import errors, hydra_compat
@@ -108,6 +109,10 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
                 cfgs.append(compose(config_name, overrides=job))
             except (HydraException, ValueError, TypeError) as e:  # Hydra raises the last two on odd overrides
                 raise _composition_error(e, job, config_name) from None
+            except yaml.YAMLError as e:   # a config file's YAML: a !!python/... tag (the safe loader refuses it), ...
+                where = getattr(e, "problem_mark", None)
+                raise errors.ConfigError("config file", str(where.name) if where else "?",
+                                         f"unreadable YAML ({type(e).__name__}: {_one_line(e)})") from None
     return cfgs
 
 

@@ -76,14 +76,14 @@ def main(argv: Sequence[str] | None = None) -> None:
     kwargs = {"thresholds": dict(args.threshold), "formats": args.formats, "update_run": args.update_run,
               "update_gen": args.update_gen, "xscale": args.xscale, "x": args.x, "trust": args.trust}
     from rovermarl.analysis.stamp import current_index
-    index = current_index(args.path, out, **kwargs)
-    if index is not None:
-        print(f"{PROG}: {len(index['figures'])} figures in {out}, up to date (their inputs did not change)")
-        return
-    from rovermarl.analysis.figures import plot_sweep
     try:
+        index = current_index(args.path, out, **kwargs)
+        if index is not None:
+            print(f"{PROG}: {len(index['figures'])} figures in {out}, up to date (their inputs did not change)")
+            return
+        from rovermarl.analysis.figures import plot_sweep
         index = plot_sweep(args.path, out, log=log, **kwargs)
-    except SweepError as e:
+    except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])
@@ -103,6 +103,9 @@ class PlotCallback(Callback):
 
     Register it in ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``.
     Plotting problems are logged as a warning and never raised, so a finished sweep is never marked failed.
+    Only the job dirs this launch ran are read (:func:`own_jobs`, from the launch's own overrides, not from any file
+    of the sweep dir): their world plug-ins are the ones the command line named, so they are built; a job dir
+    planted beside them is not read.
     ``formats`` None: :data:`rovermarl.analysis.stamp.FORMATS`. matplotlib is imported when the sweep ends, so
     every job's start-up is spared it.
     """
@@ -122,10 +125,19 @@ class PlotCallback(Callback):
                 log.info("figures in %s are up to date", sweep / "figures")
                 return
             from rovermarl.analysis.figures import plot_sweep
-            index = plot_sweep(sweep, **kwargs)                  # the sweep this invocation ran: trusted
+            index = plot_sweep(sweep, only=own_jobs(config, sweep), **kwargs)   # this launch's jobs: trusted
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
-            log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, e)
+            log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, " ".join(str(e).split()))
+
+
+def own_jobs(config, sweep: Path) -> list[Path]:
+    """The job dirs of the launch whose Hydra config is ``config``: its task overrides expanded as its sweeper did
+    (:func:`rovermarl.config.job_dirs`), under ``sweep``."""
+    from rovermarl.config import job_dirs
+
+    overrides = [str(o) for o in config.hydra.overrides.task if not str(o).startswith("hydra.")]
+    return job_dirs(overrides, True, sweep)
 
 
 if __name__ == "__main__":

@@ -65,19 +65,23 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     from rovermarl.env import World
     from rovermarl.record.events import occupancy
     from rovermarl.record.rerun_log import write_rrd
+    from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_yaml
 
     job = run.parent.parent
+    check_tree(job, "job dir")                                         # nothing followed out of it, no FIFO read
     cfg_path = next((p for p in (job / ".hydra" / "config.yaml", job / "config.yaml") if p.exists()), None)
     if cfg_path is None or not (run / "genomes.npy").exists():
         raise ReplayError(f"{run}: --resim needs genomes.npy and the job's .hydra/config.yaml (or config.yaml)")
+    config = read_yaml(cfg_path)
     try:
-        world = World.from_config(OmegaConf.load(cfg_path), trust)
+        world = World.from_config(OmegaConf.create(config if isinstance(config, dict) else {}), trust)
     except ConfigError as e:
         raise ReplayError(f"{cfg_path}: {e}") from None
-    genomes = np.load(run / "genomes.npy")
+    size = RunSize.of(config, world)
+    genomes = load_npy(run / "genomes.npy", size.genomes())
     if ic_seed is None:
-        with np.load(run / "initial_conditions.npz") as z:
-            ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)
+        z = load_npz(run / "initial_conditions.npz", size.initial_conditions(), ("xy", "heading"), stored=True)
+        ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)
     else:
         ic = world.initial_conditions(ic_seed)
     roll = world.rollout(genomes, ic)

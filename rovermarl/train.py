@@ -41,6 +41,7 @@ from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_opti
 from rovermarl.errors import ConfigError  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
+from rovermarl.record.safe_read import Unsafe, check_tree  # noqa: E402
 from rovermarl.resources import CONF_DIR  # noqa: E402
 from rovermarl.runner.compile import announce_and_warm  # noqa: E402
 from rovermarl.runner.job import all_finished, run_job  # noqa: E402
@@ -63,6 +64,8 @@ def task(cfg: DictConfig) -> float:
         raise Stop(f"{PROG}: error: {e}", BUSY) from None
     except BackendError as e:
         raise Stop(f"{PROG}: error: {name}: {e}; relaunch the same command to resume") from None
+    except Unsafe as e:
+        raise Stop(f"{PROG}: error: {name}: {e}", 2) from None
     except OSError as e:
         if e.errno not in STORAGE_ERRORS or os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise
@@ -105,6 +108,7 @@ def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser,
     given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key + "=")]
     out = given[-1] if given else f"outputs/{'multirun' if args.multirun else 'run'}/{sweepname(args.overrides)}"
     writable(key, Path(out))
+    check_tree(Path(out), "output dir")              # a copied results dir: no link followed out of it, no FIFO
     if not given:
         args.overrides = [*args.overrides, f"{key}='{out}'"]
     args.out_dir = Path(out)
@@ -212,6 +216,8 @@ def main(argv: list[str] | None = None) -> None:
         stop = Stop(f"{PROG}: error: {e}", 2)
     except lock.Locked as e:
         stop = Stop(f"{PROG}: error: {e}", BUSY)
+    except Unsafe as e:
+        stop = Stop(f"{PROG}: error: {e}", 2)
     except KeyboardInterrupt:
         if os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise

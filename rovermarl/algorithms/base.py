@@ -242,10 +242,18 @@ class Algorithm:
         raise NotImplementedError
 
 
+BIT_GENERATORS = {c.__name__: c for c in (np.random.PCG64, np.random.PCG64DXSM, np.random.Philox, np.random.SFC64,
+                                          np.random.MT19937)}   # numpy's, by the name their state carries
+
+
 def generator(state: dict) -> np.random.Generator:
-    """A generator continuing from a bit-generator ``state`` (of any numpy bit generator): how a run's RNG streams
-    live in its plain-dict state."""
-    bit = getattr(np.random, state["bit_generator"])()
+    """A generator continuing from a bit-generator ``state`` (of one of numpy's :data:`BIT_GENERATORS`): how a
+    run's RNG streams live in its plain-dict state. The name in ``state`` only picks from those classes: a name
+    from a file is never looked up as a function."""
+    name = state.get("bit_generator") if isinstance(state, dict) else None
+    if not isinstance(name, str) or name not in BIT_GENERATORS:
+        raise ValueError(f"bit generator {str(name)[:40]!r} is not one of numpy's ({', '.join(BIT_GENERATORS)})")
+    bit = BIT_GENERATORS[name]()
     bit.state = state
     return np.random.Generator(bit)
 

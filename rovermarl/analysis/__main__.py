@@ -110,7 +110,7 @@ def main(argv=None) -> None:
             from rovermarl.analysis.claims import selectors
             text, _ = selectors(args.results, args.against, args.x)
             print(text, end="")
-    except (ResultsError, SweepError, ConfigError) as e:   # ConfigError: a job config refused or not rebuilt
+    except (ResultsError, SweepError, ConfigError, OSError) as e:   # ConfigError: a config refused; OSError: a file
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
 

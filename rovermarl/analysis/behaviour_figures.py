@@ -12,6 +12,7 @@ from rovermarl.analysis.draw import line, new_figure, poi_handles, rover_handles
 from rovermarl.analysis.sweep import Job, RunCurve
 from rovermarl.env import World
 from rovermarl.palette import OCCUPANCY_CMAP
+from rovermarl.record.safe_read import load_npz
 
 UPDATE_EPISODES = 4
 
@@ -36,8 +37,8 @@ def fig_update(job: Job, run: RunCurve, world: World, at: int | None = None,
                n_episodes: int = UPDATE_EPISODES) -> tuple[Figure, dict] | None:
     """Fig. 6 bottom: the team's trajectories before (top row) and after (bottom row) one accepted update, in the
     ``n_episodes`` episodes whose final positions moved most. None if the run has no such update."""
-    with np.load(run.path / "behaviour.npz") as b:
-        generation, score, xy = b["generation"], b["score"], b["xy"]
+    b = load_npz(run.path / "behaviour.npz", job.size.behaviour(), ("generation", "score", "xy"), stored=True)
+    generation, score, xy = b["generation"], b["score"], b["xy"]
     i = pick_update(generation, score, at)
     if i is None:
         return None
@@ -64,8 +65,8 @@ def fig_update(job: Job, run: RunCurve, world: World, at: int | None = None,
 def fig_occupancy(job: Job, run: RunCurve, world: World) -> tuple[Figure, dict]:
     """Fig. 6 top: the run's score, the mean number of rovers observing each POI at the end of an episode, and
     the fraction of episodes in which each POI is satisfied (enough rovers), over generations."""
-    with np.load(run.path / "occupancy.npz") as occ:
-        generation, count = occ["generation"], occ["count"].astype(np.float64)
+    occ = load_npz(run.path / "occupancy.npz", job.size.occupancy(), ("generation", "count"), stored=True)
+    generation, count = occ["generation"], occ["count"].astype(np.float64)
     last = max(len(run.score) - 1, int(generation[-1])) + 1
     edges = np.append(generation, last)
     poi_edges = np.arange(count.shape[2] + 1) - 0.5

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rovermarl.record.safe_read import FREE, RunSize, Spec, load_npz
+
 GRID_POINTS = 400
 
 
@@ -84,22 +86,31 @@ class Exported:
     probs: np.ndarray | None    # (R, M, K) float32 bandit arm probabilities on the grid, None for fixed k
 
 
-def read_exported(job_dir: Path) -> Exported:
-    """Read ``job_dir/curves.npz`` of an exported job."""
-    with np.load(Path(job_dir) / "curves.npz") as z:
-        curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
-        return Exported(curves, z["grid"], z["probs"] if "probs" in z.files else None)
+def read_exported(job_dir: Path, seeds: int | None = None, generations: int | None = None) -> Exported:
+    """Read ``job_dir/curves.npz`` of an exported job (of ``seeds`` runs of ``generations``, when known: each
+    member's size is checked against them before it is read, :mod:`rovermarl.record.safe_read`)."""
+    r = seeds if isinstance(seeds, int) and 0 < seeds <= 1 << 16 else None
+    g = generations if isinstance(generations, int) and 0 <= generations <= 10**10 else None
+    steps = FREE if r is None or g is None else min(r * (g + 1), FREE)
+    z = load_npz(Path(job_dir) / "curves.npz", {
+        "seed": Spec((r,), "iu", 1 << 16), "generations": Spec((), "iu"), "step_run": Spec((None,), "iu", steps),
+        "step_generation": Spec((None,), "iu", steps), "step_score": Spec((None,), "f", steps),
+        "grid": Spec((None,), "iu", GRID_POINTS + 1), "score": Spec((r, None), "f", max(GRID_POINTS + 1, 1 << 16)), "probs": Spec((r, None, None), "f", max(GRID_POINTS + 1, 64))},
+        required=("seed", "generations", "step_run", "step_generation", "step_score", "grid"))
+    curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
+    return Exported(curves, z["grid"], z.get("probs"))
 
 
-def read_run_curve(run_dir: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """(score (G+1,), probs (G, K) or None for fixed k) of a sweep's run dir, as float64."""
-    with np.load(Path(run_dir) / "curve.npz") as curve:
-        score = np.asarray(curve["score"], dtype=np.float64)
-        probs = np.asarray(curve["probs"], dtype=np.float64) if "probs" in curve.files else None
+def read_run_curve(run_dir: Path, size: RunSize | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(score (G+1,), probs (G, K) or None for fixed k) of a sweep's run dir, as float64 (``size``: what the run's
+    config implies, checked before anything is read)."""
+    curve = read_run_arrays(run_dir, size)
+    score = np.asarray(curve["score"], dtype=np.float64)
+    probs = np.asarray(curve["probs"], dtype=np.float64) if "probs" in curve else None
     return score, probs
 
 
-def read_run_arrays(run_dir: Path) -> dict[str, np.ndarray]:
-    """Every array of a sweep's run ``curve.npz`` (score, k, accepted, child_score, and what else was recorded)."""
-    with np.load(Path(run_dir) / "curve.npz") as curve:
-        return {key: curve[key] for key in curve.files}
+def read_run_arrays(run_dir: Path, size: RunSize | None = None) -> dict[str, np.ndarray]:
+    """Every array of a sweep's run ``curve.npz`` (score, k, accepted, child_score, and what else was recorded),
+    each checked against ``size`` (:class:`~rovermarl.record.safe_read.RunSize`) before it is read."""
+    return load_npz(Path(run_dir) / "curve.npz", (size or RunSize()).curve(), required=("score",), stored=True)

@@ -21,6 +21,7 @@ from rovermarl.analysis.rerun import mutated_rovers
 from rovermarl.analysis.results import COUPLING_KINDS, ResultsError
 from rovermarl.analysis.sweep import Job, fig6_job, find_jobs, labels
 from rovermarl.record.outputs import INVOCATIONS, LAUNCH, atomic_open, write_json
+from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_json, read_text
 from rovermarl.runner.trust import check_targets
 
 
@@ -50,10 +51,10 @@ def compute_of(job: Job) -> dict:
     """Team evaluations and wall time of every launch of the job (``invocations.jsonl``, and the ``launch.json`` of
     a killed launch not relaunched since; else summary.json)."""
     log, killed = job.path / INVOCATIONS, job.path / LAUNCH
-    launches = [json.loads(x) for x in log.read_text().splitlines() if x.strip()] if log.is_file() else []
-    launches += [json.loads(killed.read_text())] if killed.is_file() else []
+    launches = [json.loads(x) for x in read_text(log).splitlines() if x.strip()] if log.is_file() else []
+    launches += [read_json(killed)] if killed.is_file() else []
     if not launches:                                                     # jobs run before the log existed
-        summary = json.loads((job.path / "summary.json").read_text())
+        summary = read_json(job.path / "summary.json")
         launches = [{"wall_time_s": summary.get("wall_time_s", 0.0), "team_evals": summary.get("team_evals", 0)}]
     return {"launches": len(launches), "wall_time_s": sum(x["wall_time_s"] for x in launches),
             "team_evals": sum(x["team_evals"] for x in launches)}
@@ -78,10 +79,10 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
     episodes = world.episodes
     couplings = {}
     for r in runs:
-        c = coupling(read_run_arrays(r.path), episodes)
+        c = coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)
         if c is not None:
             couplings[str(r.seed)] = c
-    summary = json.loads((job.path / "summary.json").read_text()) if job.finished else {}
+    summary = read_json(job.path / "summary.json") if job.finished else {}
     compute = compute_of(job)
     compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
@@ -108,7 +109,7 @@ def final_teams(runs) -> dict | None:
     None unless every run wrote its ``genomes.npy``."""
     if not runs or not all(r.has("genomes.npy") for r in runs):
         return None
-    genomes = [np.load(r.path / "genomes.npy", allow_pickle=False) for r in runs]
+    genomes = [load_npy(r.path / "genomes.npy", RunSize().genomes()) for r in runs]   # header against file size
     if len({g.shape for g in genomes}) != 1:
         raise ResultsError(f"{runs[0].path.parent}: final teams of different shapes")
     return {"seed": np.array([r.seed for r in runs], dtype=np.int64),
@@ -119,7 +120,7 @@ def _kept_compute(out: Path, replaced: set[str]) -> dict:
     """The compute of ``out``'s jobs that this export leaves in place (from its ``compute.json``): a study exported
     job by job, over several sweeps or sessions, keeps every job's compute."""
     try:
-        jobs = json.loads((out / "compute.json").read_text()).get("jobs", {})
+        jobs = read_json(out / "compute.json").get("jobs", {})
     except (OSError, ValueError, AttributeError):
         return {}
     return {name: c for name, c in jobs.items() if name not in replaced and (out / name / "summary.json").is_file()}
@@ -139,6 +140,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise ResultsError(f"{out}: not a directory")
+    check_tree(out)                                                     # its entries are replaced: no link in it
     rerun = fig6_job(jobs) if fig6 else None
     if rerun is not None and not trust:
         check_targets(rerun.config, str(rerun.path))
@@ -261,10 +263,11 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
         run = next((r for r in runs if r.seed == run_seed), None)
         if run is None:
             raise ResultsError(f"{job.path}: no recorded run with seed {run_seed}")
-    with np.load(run.path / "behaviour.npz") as b:
-        generation, score, xy = b["generation"], b["score"], b["xy"]
-    with np.load(run.path / "occupancy.npz") as o:
-        occ_generation, count = o["generation"], o["count"]
+    size = job.size
+    b = load_npz(run.path / "behaviour.npz", size.behaviour(), ("generation", "score", "xy"), stored=True)
+    generation, score, xy = b["generation"], b["score"], b["xy"]
+    o = load_npz(run.path / "occupancy.npz", size.occupancy(), ("generation", "count"), stored=True)
+    occ_generation, count = o["generation"], o["count"]
     after = _crossings(generation, score, levels)
     events = [(i - 1, i) for i in after]        # the 'before' entry is the parent team of the 'after' generation
     replayed = mutated_rovers(job.config, run.seed, [int(generation[i]) for _, i in events],  # in generation order

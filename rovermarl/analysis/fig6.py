@@ -22,14 +22,16 @@ from rovermarl.analysis.results import COUPLING_KINDS, Result
 from rovermarl.analysis.sweep import Job
 from rovermarl.env import World
 from rovermarl.palette import OCCUPANCY
+from rovermarl.record.safe_read import ANY, Spec, load_npz
+
+FIG6_BYTES = 64 << 20     # the arrays of a fig6.npz at most (a legitimate one holds well under 1 MB)
 
 KIND_LABELS = dict(zip(COUPLING_KINDS, ("accepted,\nscore rose", "accepted,\nscore equal", "rejected"), strict=True))
 
 
 def fig_fig6(path: Path, job: Job, world: World, xscale: str = "linear") -> tuple[Figure, dict]:
     """Fig. 6 from ``fig6.npz``, a run of ``job`` in ``world``; returns (figure, info)."""
-    with np.load(path) as z:
-        d = {k: z[k] for k in z.files}
+    d = load_npz(path, {ANY: tuple(Spec((None,) * n, most=1 << 16) for n in range(7))}, max_bytes=FIG6_BYTES)
     if tuple(d["coupling"].tolist()) != world.coupling:
         raise ValueError(f"{path}: its POI couplings differ from the world of {job.name}")
     events = len(d["event_generation"])

@@ -22,7 +22,6 @@ import re
 from collections.abc import Sequence
 from pathlib import Path
 
-import numpy as np
 from matplotlib.figure import Figure
 
 from rovermarl.analysis.behaviour_figures import fig_occupancy, fig_update, pick_run, pick_update
@@ -34,6 +33,7 @@ from rovermarl.analysis.results import load
 from rovermarl.analysis.stamp import inputs_stamp, options
 from rovermarl.analysis.sweep import Job, RunCurve, SweepError, fig6_job, find_jobs, load_job, soft_strict_pairs
 from rovermarl.record.outputs import write_json
+from rovermarl.record.safe_read import RunSize, load_npz, refuse_odd
 
 
 def _load_update_run(path: Path, update_gen: int | None, notes: list[str]) -> tuple[Job, RunCurve]:
@@ -44,8 +44,8 @@ def _load_update_run(path: Path, update_gen: int | None, notes: list[str]) -> tu
     if not (path / "behaviour.npz").is_file():
         raise SweepError(f"--update-run {path}: no behaviour.npz (this run recorded no trajectories)")
     try:
-        with np.load(path / "behaviour.npz") as b:
-            generation, score = b["generation"], b["score"]
+        b = load_npz(path / "behaviour.npz", RunSize().behaviour(), ("generation", "score", "xy"), stored=True)
+        generation, score = b["generation"], b["score"]
     except Exception as e:
         raise SweepError(f"--update-run {path}: unreadable behaviour.npz ({type(e).__name__})") from None
     if update_gen is not None and pick_update(generation, score, update_gen) is None:
@@ -99,28 +99,33 @@ def _fig6(path: Path, jobs: Sequence[Job], xscale: str, notes: list[str]) -> tup
         return None
     try:
         return fig_fig6(path, job, world, xscale)
-    except ValueError as e:
+    except (ValueError, OSError) as e:                                  # OSError: safe_read's Corrupt
         notes.append(f"{e}; no fig6 figure")
         return None
 
 
 def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float] | None = None,
                formats: Sequence[str] = FORMATS, update_run: Path | None = None, update_gen: int | None = None,
-               log=None, xscale: str = "linear", x: str = "auto", trust: bool = False) -> dict:
+               log=None, xscale: str = "linear", x: str = "auto", trust: bool = False,
+               only: Sequence[Path] | None = None) -> dict:
     """Draw every figure of the sweep (or job) dir ``path`` into ``out`` (default ``path/figures``).
 
     ``path`` may also be a results dir of :mod:`rovermarl.analysis.results`; it adds the Fig. 6 and C8
     figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included). ``x``:
     the score curves' x-axis, ``generation``, ``evals`` (team evaluations) or ``auto`` (evaluations when a setup's
     jobs spend different numbers per generation). ``trust``: build world plug-ins named by the jobs' configs (their
-    modules run code; the end-of-sweep callback trusts its own sweep).
+    modules run code; the end-of-sweep callback trusts its own jobs, ``only`` those the launch ran).
 
     Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
     """
     path = Path(path)
     out = Path(out) if out is not None else path / "figures"
-    stamp = inputs_stamp(path, out, **options(thresholds, formats, update_run, update_gen, xscale, x, trust))
-    jobs, notes = find_jobs(path)
+    try:
+        refuse_odd(out, "figures dir")                                   # a linked figures dir: written elsewhere
+        stamp = inputs_stamp(path, out, **options(thresholds, formats, update_run, update_gen, xscale, x, trust))
+    except OSError as e:
+        raise SweepError(str(e)) from None
+    jobs, notes = find_jobs(path, only)
     chosen = _load_update_run(update_run, update_gen, notes) if update_run is not None else None
     figures: list[dict] = []
 

@@ -10,7 +10,6 @@ teams are added. ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +18,7 @@ from rovermarl.analysis.export import final_teams
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import RunCurve
 from rovermarl.record.outputs import atomic_open, write_json
+from rovermarl.record.safe_read import check_tree, read_json
 
 
 def merge(sweep: Path, results: Path, log=print) -> list[str]:
@@ -26,12 +26,14 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
     returns the names of the jobs updated. A job whose recomputed final scores differ from the committed ones is
     refused (an error naming it and the first seed that differs), and nothing of it is written."""
     updated = []
+    check_tree(results)                                 # a linked job dir would have its summary written elsewhere
+    check_tree(sweep)
     for path in sorted(Path(results).glob("*/summary.json")):
         name = path.parent.name
         done = Path(sweep) / name / "summary.json"
         if not done.is_file():
             continue
-        committed, recomputed = json.loads(path.read_text()), json.loads(done.read_text())
+        committed, recomputed = read_json(path), read_json(done)
         want, got = committed["final_score"], recomputed.get("final_score", {})
         held = recomputed.get("heldout_score") or {}
         if set(got) != set(want) or set(held) != set(want):

@@ -28,6 +28,7 @@ from rovermarl.analysis.export import compute_of
 from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.env import World
+from rovermarl.record.safe_read import RunSize, load_npy, load_npz, read_json
 
 SPEC = "spec"
 # Each alternative reading (a job override) and the sentence of the paper that allows it.
@@ -65,10 +66,11 @@ def _method(job) -> str:
     return "homogeneous" if job.homogeneous else job.k_name
 
 
-def _final_step(world: World, run_dir: Path) -> float:
-    """The final team's F on the run's initial conditions, positions after the last step (SPEC reward)."""
-    with np.load(run_dir / "initial_conditions.npz") as ic:
-        return world.evaluate(np.load(run_dir / "genomes.npy"), (ic["xy"], ic["heading"]))
+def _final_step(world: World, run_dir: Path, size: RunSize) -> float:
+    """The final team's F on the run's initial conditions, positions after the last step (SPEC reward); the files
+    checked against the run's ``size`` before they are read."""
+    ic = load_npz(run_dir / "initial_conditions.npz", size.initial_conditions(), ("xy", "heading"), stored=True)
+    return world.evaluate(load_npy(run_dir / "genomes.npy", size.genomes()), (ic["xy"], ic["heading"]))
 
 
 def export(sweep: Path, out: Path, log=print) -> dict:
@@ -80,13 +82,14 @@ def export(sweep: Path, out: Path, log=print) -> dict:
     for job in jobs:
         if not job.finished:
             continue
-        summary = json.loads((job.path / "summary.json").read_text())
+        summary = read_json(job.path / "summary.json")
         world = World.from_config(OmegaConf.merge(OmegaConf.create(job.config), {"env": {"reward": "final"}}))
+        size = RunSize.of(job.config, world)
         runs = {}
         for run in sorted(job.runs, key=lambda r: r.seed):
-            meta = json.loads((run.path / "run.json").read_text())
+            meta = read_json(run.path / "run.json")
             runs[str(run.seed)] = {
-                "final": float(run.score[-1]), "final_step": _final_step(world, run.path),
+                "final": float(run.score[-1]), "final_step": _final_step(world, run.path, size),
                 "heldout": float(meta["heldout_score"]),
                 "first": {str(lv): _first(run.score, lv) for lv in LEVELS}}
         entries.append({"job": job.path.name, "reading": reading_of(job.overrides), "setup": job.setup,

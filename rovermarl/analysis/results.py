@@ -18,7 +18,6 @@ the claims and figures need, in a few MB, with the same job-dir layout::
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,6 +25,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl.analysis.curves import Curves, read_exported
+from rovermarl.record.safe_read import check_tree, read_json, read_yaml
 
 # summary["coupling"][seed][kind]: single-rover updates accepted with a higher score, with an equal one, rejected
 COUPLING_KINDS = ("improved", "neutral", "rejected")
@@ -49,8 +49,8 @@ class Result:
     path: Path
 
     def config(self) -> DictConfig:
-        """The job's composed config."""
-        return OmegaConf.load(self.path / "config.yaml")
+        """The job's composed config (read safely: a regular file, no tag runs anything)."""
+        return OmegaConf.create(read_yaml(self.path / "config.yaml") or {})
 
 
 def load(path: Path) -> list[Result]:
@@ -59,12 +59,20 @@ def load(path: Path) -> list[Result]:
     if not path.is_dir():
         raise ResultsError(f"not a results directory: {path}")
     out = []
-    for curves_file in sorted(path.glob("*/curves.npz")):
-        job_dir = curves_file.parent
-        summary = json.loads((job_dir / "summary.json").read_text())
-        e = read_exported(job_dir)
-        out.append(Result(job_dir.name, summary["label"], summary["setup"], summary, e.curves, e.grid, e.probs,
-                          job_dir))
+    try:
+        check_tree(path)
+        for curves_file in sorted(path.glob("*/curves.npz")):
+            job_dir = curves_file.parent
+            summary = read_json(job_dir / "summary.json")
+            if not isinstance(summary, dict):
+                raise ResultsError(f"{job_dir / 'summary.json'} is not a job summary")
+            config = read_yaml(job_dir / "config.yaml") if (job_dir / "config.yaml").exists() else {}
+            generations = config.get("generations") if isinstance(config, dict) else None
+            e = read_exported(job_dir, len(summary.get("seeds") or []) or None, generations)
+            out.append(Result(job_dir.name, str(summary.get("label")), str(summary.get("setup")), summary, e.curves,
+                              e.grid, e.probs, job_dir))
+    except OSError as e:                                    # safe_read's Unsafe and Corrupt: one line
+        raise ResultsError(str(e)) from None
     if not out:
         raise ResultsError(f"no exported job (*/curves.npz) in {path}; run `python -m rovermarl.analysis export`")
     return out
@@ -74,6 +82,6 @@ def load_study(results: Path, name: str) -> list[dict]:
     """The jobs of a study's compact numbers, ``RESULTS/<name>.json`` (the readings and baselines studies)."""
     path = Path(results) / f"{name}.json"
     try:
-        return json.loads(path.read_text())["jobs"]
-    except (OSError, ValueError, KeyError) as e:
+        return read_json(path)["jobs"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
         raise ResultsError(f"{path}: no {name} results ({type(e).__name__}); run `export` first") from None

@@ -7,6 +7,8 @@ import hashlib
 import json
 from pathlib import Path
 
+from rovermarl.record.safe_read import check_tree, read_bytes, read_json
+
 FORMATS = ("png", "pdf")   # the figures' default formats
 INPUTS = ("summary.json", "run.json", "curve.npz", "curves.npz", "behaviour.npz", "occupancy.npz", "config.yaml",
           "fig6.npz", "compute.json")
@@ -27,19 +29,21 @@ def current_index(path: Path, out: Path | None = None, **kwargs) -> dict | None:
     stamp = inputs_stamp(path, out, **options(**kwargs))
     if not up_to_date(out, stamp):
         return None
-    return json.loads((out / "index.json").read_text())
+    return read_json(out / "index.json")
 
 
 def inputs_stamp(path: Path, out: Path, **options) -> str:
     """A hash of the figures' input files under ``path`` (names :data:`INPUTS`, not under ``out``: their sizes and
-    modification times, a config's content) and of ``options``."""
+    modification times, a config's content) and of ``options``. A link, FIFO or device under ``path`` is refused
+    first (:class:`~rovermarl.record.safe_read.Unsafe`): a FIFO named config.yaml would hang the read."""
+    check_tree(path)
     path, out = Path(path), Path(out).resolve()
     h = hashlib.sha256(json.dumps(options, sort_keys=True, default=str).encode())
     for f in sorted(p for name in INPUTS for p in path.rglob(name)):
         if out in f.resolve().parents:
             continue
         st = f.stat()                  # configs by content: Hydra rewrites .hydra/config.yaml at every launch
-        key = hashlib.sha256(f.read_bytes()).hexdigest() if f.suffix == ".yaml" else f"{st.st_size}\0{st.st_mtime_ns}"
+        key = hashlib.sha256(read_bytes(f)).hexdigest() if f.suffix == ".yaml" else f"{st.st_size}\0{st.st_mtime_ns}"
         h.update(f"{f.relative_to(path)}\0{key}\n".encode())
     return h.hexdigest()
 
@@ -47,8 +51,10 @@ def inputs_stamp(path: Path, out: Path, **options) -> str:
 def up_to_date(out: Path, stamp: str) -> bool:
     """Whether ``out/index.json`` was written from inputs with this stamp and every file it lists is still there."""
     try:
-        index = json.loads((Path(out) / "index.json").read_text())
-    except (OSError, ValueError):
+        index = read_json(Path(out) / "index.json")
+    except OSError:
+        return False
+    if not isinstance(index, dict):
         return False
     files = [Path(out) / f for fig in index.get("figures", []) for f in fig.get("files", [])]
     return index.get("inputs") == stamp and all(f.exists() for f in files)

@@ -7,7 +7,6 @@ way: its job dirs hold ``summary.json``, ``config.yaml`` and ``curves.npz``.
 
 from __future__ import annotations
 
-import json
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -16,9 +15,10 @@ from pathlib import Path
 import numpy as np
 from omegaconf import OmegaConf
 
-from rovermarl.analysis.curves import read_exported, read_run_curve
+from rovermarl.analysis.curves import read_exported, read_run_arrays, read_run_curve
 from rovermarl.analysis.levels import setup_rank
 from rovermarl.env import World, make_world
+from rovermarl.record.safe_read import RunSize, check_tree, read_json, read_yaml
 
 # Config keys that never tell two methods apart: where and how a job runs, and the setup (figures group by it).
 # :meth:`Job.keyed_overrides` drops them, so that labels name only what differs in the method. Kept by hand: a
@@ -115,10 +115,15 @@ class Job:
             return float(given)
         for run in self.runs[:1]:
             if run.has("curve.npz"):
-                with np.load(run.path / "curve.npz") as curve:
-                    if "team_evals" in curve and len(curve["team_evals"]):
-                        return float(curve["team_evals"][-1] - 1) / len(curve["team_evals"])
+                curve = read_run_arrays(run.path, self.size)
+                if "team_evals" in curve and len(curve["team_evals"]):
+                    return float(curve["team_evals"][-1] - 1) / len(curve["team_evals"])
         return 1.0
+
+    @property
+    def size(self) -> RunSize:
+        """What the job's config implies of its runs' files (checked before they are read)."""
+        return RunSize.of(self.config)
 
     def evals(self, generations) -> np.ndarray:
         """Team evaluations spent after ``generations`` (the initial team's one included)."""
@@ -170,27 +175,29 @@ class Job:
 
 def _read_yaml(path: Path):
     try:
-        return OmegaConf.to_container(OmegaConf.load(path), resolve=False) if path.is_file() else None
-    except Exception:  # a broken yaml is treated as missing
+        found = read_yaml(path) if path.is_file() else None
+    except OSError:  # a broken, odd or oversized yaml is treated as missing
         return None
+    return found if isinstance(found, (dict, list)) else None
 
 
 def _read_json(path: Path) -> dict | None:
     try:
-        return json.loads(path.read_text()) if path.is_file() else None
-    except (OSError, ValueError):
+        found = read_json(path) if path.is_file() else None
+    except OSError:
         return None
+    return found if isinstance(found, dict) else None
 
 
-def load_run(run_dir: Path) -> RunCurve:
-    score, probs = read_run_curve(run_dir)
+def load_run(run_dir: Path, size: RunSize | None = None) -> RunCurve:
+    score, probs = read_run_curve(run_dir, size)
     match = re.search(r"(\d+)$", run_dir.name)
     return RunCurve(run_dir, int(match[1]) if match else -1, score, probs)
 
 
-def _exported_runs(path: Path) -> list[RunCurve]:
+def _exported_runs(path: Path, seeds: int | None, generations) -> list[RunCurve]:
     """The runs of an exported job dir: exact curves, probs on the grid."""
-    e = read_exported(path)
+    e = read_exported(path, seeds, generations)
     if e.probs is None:
         return [RunCurve(path, int(seed), e.curves.full(i), None) for i, seed in enumerate(e.curves.seeds)]
     return [RunCurve(path, int(seed), e.curves.full(i), e.probs[i].astype(np.float64), e.grid)
@@ -201,26 +208,37 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     """Read one job dir (finished or not, or exported); None, with a note, if it has no readable run."""
     summary = _read_json(path / "summary.json")
     if (path / "curves.npz").is_file():
-        return Job(path, dict(summary.get("choices") or {}), _read_yaml(path / "config.yaml") or {}, [],
-                   _exported_runs(path), True)
+        config = _read_yaml(path / "config.yaml") or {}
+        config = config if isinstance(config, dict) else {}
+        seeds = len((summary or {}).get("seeds") or []) or None
+        try:
+            runs = _exported_runs(path, seeds, config.get("generations"))
+        except OSError as e:
+            notes.append(f"{e}; job skipped")
+            return None
+        return Job(path, dict((summary or {}).get("choices") or {}), config, [], runs, True)
     hydra_dir = path / ".hydra"
     choices = dict((summary or {}).get("choices") or {})
     if not choices:
         runtime = ((_read_yaml(hydra_dir / "hydra.yaml") or {}).get("hydra") or {}).get("runtime") or {}
         choices = {g: o for g, o in (runtime.get("choices") or {}).items() if "/" not in g and o is not None}
     overrides = [str(o).replace("'", "").replace('"', "") for o in _read_yaml(hydra_dir / "overrides.yaml") or []]
+    config = _read_yaml(hydra_dir / "config.yaml") or _read_yaml(path / "config.yaml") or {}  # CLI, or library use
+    config = config if isinstance(config, dict) else {}
+    size = RunSize.of(config)
     runs = []
     for run_dir in sorted((path / "runs").glob("seed_*")):
         if not RUN_DIR.fullmatch(run_dir.name) or not (run_dir / "curve.npz").is_file():   # seed_XXX.<hash>: set aside
             continue
         try:
-            runs.append(load_run(run_dir))
+            runs.append(load_run(run_dir, size))
+        except OSError as e:    # safe_read: corrupt, too large, odd; skips that run only
+            notes.append(f"{e}; run skipped")
         except Exception as e:  # a half-written or corrupt file skips that run only
             notes.append(f"{run_dir}: unreadable curve.npz ({type(e).__name__}); run skipped")
     if not runs:
         notes.append(f"{path.name}: no finished run yet; job skipped")
         return None
-    config = _read_yaml(hydra_dir / "config.yaml") or _read_yaml(path / "config.yaml") or {}  # CLI, or library use
     job = Job(path, choices, config, overrides, runs, summary is not None)
     expected = len((summary or {}).get("seeds") or []) or job.config.get("seeds")
     if not job.finished or (expected and len(runs) < expected):
@@ -229,8 +247,9 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     return job
 
 
-def find_jobs(path: Path) -> tuple[list[Job], list[str]]:
-    """All job dirs under ``path`` (a sweep dir or one job dir), sorted by setup then method; plus notes."""
+def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job], list[str]]:
+    """All job dirs under ``path`` (a sweep dir or one job dir), sorted by setup then method; plus notes. ``only``:
+    just these job dirs (a relaunch's own). A link, FIFO or device anywhere under ``path`` is refused first."""
     path = Path(path)
     if not path.exists():
         raise SweepError(f"no such directory: {path}")
@@ -238,8 +257,14 @@ def find_jobs(path: Path) -> tuple[list[Job], list[str]]:
         raise SweepError(f"not a directory: {path}")
     if not any(path.iterdir()):
         raise SweepError(f"empty directory: {path}")
+    try:
+        check_tree(path)
+    except OSError as e:
+        raise SweepError(str(e)) from None
     dirs = {p.parent for p in path.rglob("summary.json")}
     dirs |= {p.parent.parent.parent for p in path.rglob("runs/seed_*/curve.npz")}
+    if only is not None:
+        dirs = {d for d in dirs if d.resolve() in {Path(o).resolve() for o in only}}
     if not dirs:
         raise SweepError(f"no job under {path} (no summary.json, runs/seed_*/curve.npz or exported curves.npz)")
     notes: list[str] = []

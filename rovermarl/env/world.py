@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Collection
 from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import ClassVar, NamedTuple
@@ -141,10 +142,11 @@ class World(Starts, Scenario):
 
     # ---- construction -------------------------------------------------------------------------
     @classmethod
-    def from_config(cls, cfg, trust: bool = True) -> World:
+    def from_config(cls, cfg, trust: bool | Collection[str] = False) -> World:
         """Build from a composed config with ``setup``, ``env`` and ``policy`` sections: the class ``env._target_``
-        names (this one by default). A read path of results passes ``trust=False``: then only rovermarl's own world
-        is built (a plug-in's module would run code: ``--trust-config``). ``cfg`` may be a plain dict."""
+        names (this one by default). Only rovermarl's own world unless ``trust`` (:func:`world_class`): the
+        training path trusts the config it composed from the command line; a read path of results never does
+        unless ``--trust-config`` is given. ``cfg`` may be a plain dict."""
         cfg = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
         setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
         env = dict(OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env)
@@ -350,12 +352,19 @@ def _warn_unless_finite(teams: np.ndarray, scores: np.ndarray) -> None:
                       "non-finite actions, which score 0", RuntimeWarning, stacklevel=3)
 
 
-def world_class(target: str | None, trust: bool = True) -> type[World]:
-    """The class ``env._target_`` names: :class:`World` for None or its own path; a plug-in's only with ``trust``
-    (its module is imported: it runs code)."""
-    if target is None or target in (f"{__name__}.World", "rovermarl.env.World"):
+OWN = (f"{__name__}.World", "rovermarl.env.World")          # env._target_ of rovermarl's own world
+
+
+def world_class(target: str | None, trust: bool | Collection[str] = False) -> type[World]:
+    """The class ``env._target_`` names: :class:`World` for None or its own path (:data:`OWN`); a plug-in's only
+    with ``trust``: True (any), or a collection of the exact names allowed (those the current command line named).
+    The name is checked as a string before anything is imported (importing a module runs its code, and ``python -m``
+    puts the working directory, results and all, on ``sys.path``)."""
+    if target is None or (isinstance(target, str) and target in OWN):
         return World
-    if not trust:
+    if not isinstance(target, str):
+        raise errors.ConfigError("env._target_", target, "must be a dotted class name (a string)")
+    if not (trust is True or (trust and not isinstance(trust, (bool, str)) and target in trust)):
         raise errors.ConfigError("env._target_", target, "a world plug-in; a results directory may not run code: "
                                  "pass --trust-config if you trust it")
     from hydra.utils import get_class

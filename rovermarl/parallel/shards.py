@@ -22,7 +22,7 @@ class ShardActor:
     """Rolls out one slice of a run's initial conditions: xy (e, N, 2), heading (e, N), layout (e, K)."""
 
     def __init__(self, cfg: dict):
-        self.world = World.from_config(OmegaConf.create(cfg))
+        self.world = World.from_config(OmegaConf.create(cfg), trust=True)   # the driver's composed config
         self.ic = None
 
     def set_ic(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray) -> None:

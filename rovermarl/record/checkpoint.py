@@ -13,6 +13,7 @@ import contextlib
 import hashlib
 import io
 import json
+import math
 import os
 import secrets
 from pathlib import Path
@@ -20,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from rovermarl.record.outputs import atomic_open, fault
+from rovermarl.record.safe_read import ANY, FREE, Spec, load_npz_bytes, read_bytes
 
 MAGIC = b"RMCKPT2"
 
@@ -102,14 +104,18 @@ class RunRecord:
                 os.unlink(new)
 
     @classmethod
-    def load(cls, path: Path, config_hash: str, generations: int | None = None) -> RunRecord:
+    def load(cls, path: Path, config_hash: str, generations: int | None = None, series=None,
+             template=None) -> RunRecord:
         """Read and verify a checkpoint (of a run of ``generations``, if given); raises :class:`CheckpointError`
-        naming the file. Its numbers are checked against each other and the config before anything is allocated."""
+        naming the file. Its numbers are checked against each other and the config before anything is allocated:
+        every member is stored (nothing inflates), the declared ``series`` (when given) are the only ones, and the
+        state matches ``template()`` (a fresh run's :func:`_template` form) key for key, shape, dtype and finite
+        values for the same, before any of it reaches the kernel."""
         path = Path(path)
         try:
-            data = path.read_bytes()
+            data = read_bytes(path, cap=_cap(generations))
         except OSError as e:
-            raise CheckpointError(f"{path}: cannot read ({e.strerror})") from None
+            raise CheckpointError(f"{path}: cannot read ({e.strerror or e})") from None
         header, _, payload = data.partition(b"\n")
         parts = header.split(b" ")
         if len(parts) != 2 or parts[0] != MAGIC:
@@ -117,13 +123,16 @@ class RunRecord:
         if hashlib.sha256(payload).hexdigest().encode() != parts[1]:
             raise CheckpointError(f"{path}: checksum mismatch (truncated or corrupt, {len(data)} bytes)")
         try:
-            with np.load(io.BytesIO(payload)) as z:
-                arrays = {key: z[key] for key in z.files}
+            arrays = load_npz_bytes(payload, str(path), _specs(generations, series), ("_meta", "score"))
             meta = json.loads(str(arrays.pop("_meta")))
             if meta["config_hash"] != config_hash:
-                raise CheckpointError(f"{path}: written by a different config (hash {meta['config_hash'][:12]}, "
+                raise CheckpointError(f"{path}: written by a different config (hash {str(meta['config_hash'])[:12]}, "
                                       f"expected {config_hash[:12]})")
             _check_sizes(meta, arrays, generations)
+            if not set(meta["extra_keys"]) <= EXTRA:
+                raise ValueError(f"extra arrays {sorted(set(meta['extra_keys']) - EXTRA)} in an unfinished run")
+            if series is not None and meta["history_keys"] != [s.name for s in series]:
+                raise ValueError(f"series {meta['history_keys']}, the algorithm declares {[s.name for s in series]}")
             rec = cls(meta["seed"], meta["generations"])
             rec.generation = meta["generation"]
             rec.score[:len(arrays["score"])] = arrays["score"]
@@ -131,11 +140,87 @@ class RunRecord:
             rec.extra = {key: arrays[key] for key in meta["extra_keys"]}
             rec.events = {key: [arrays[key]] for key in meta["event_keys"]}
             rec.state = _decode(meta["state"], arrays)
+            if template is not None:
+                _check_form(rec, template(), rec.generation)
         except CheckpointError:
             raise
         except Exception as e:  # noqa: BLE001 - any malformed content is a checkpoint that cannot be used
-            raise CheckpointError(f"{path}: malformed content ({type(e).__name__}: {str(e)[:80]})") from None
+            raise CheckpointError(f"{path}: malformed content ({type(e).__name__}: "
+                                  f"{' '.join(str(e).split())[:120]})") from None
         return rec
+
+
+EXTRA = frozenset({"ic_xy", "ic_heading", "ic_layout"})         # what an unfinished run's record holds besides
+
+
+def _cap(generations: int | None) -> int:
+    """The most bytes a checkpoint of a run of ``generations`` may have (its series, events and state)."""
+    g = generations if isinstance(generations, int) and 0 <= generations <= 10**10 else 10**6
+    return (64 << 20) + 4096 * g
+
+
+def _specs(generations: int | None, series) -> dict:
+    """What a checkpoint's members may be: ``_meta`` (a JSON string), ``score`` (g+1,), the declared ``series``
+    (g, *shape), and any other array (the state's, the events', the initial conditions); all stored, so none is
+    larger than the file, and the state is then checked against a fresh run's (:func:`_check_form`)."""
+    g = generations if isinstance(generations, int) and 0 <= generations <= 10**10 else FREE
+    specs = {"_meta": Spec((), "U"), "score": Spec((None,), "f", g + 1),
+             ANY: tuple(Spec((None,) * n, "biuf", FREE) for n in range(7))}
+    for s in series or ():
+        specs[s.name] = Spec((None, *s.shape), np.dtype(s.dtype).kind, g)
+    return specs
+
+
+def _check_form(rec: RunRecord, template: dict, done: int) -> None:
+    """Raise ValueError unless ``rec``'s state, initial conditions and events have the form of ``template``
+    (``{"state", "ic_xy", "ic_heading", ["ic_layout"], "events"}`` of a fresh run of the same config and seed)."""
+    arrays: dict = {}
+    encoded = _encode(template["state"], arrays)                   # as a checkpoint holds it: plain, arrays apart
+    _same(rec.state, _decode(encoded, arrays), "state")
+    for key in EXTRA:
+        if (key in rec.extra) != (key in template):
+            raise ValueError(f"{key} {'missing' if key in template else 'unexpected'}")
+        if key in template:
+            _same(rec.extra[key], np.asarray(template[key]), key)
+    for key, parts in rec.events.items():
+        want = template["events"].get(key)
+        got = parts[0]
+        if want is None or got.dtype != want.dtype or got.shape[1:] != want.shape[1:] or len(got) > done + 2:
+            raise ValueError(f"events {key!r} of shape {got.shape} {got.dtype}, not a fresh run's (first axis at most "
+                             f"{done + 2})")
+
+
+def _kind(value) -> type:
+    """The JSON kind of a plain value (a float subclass such as Evaluated is a float)."""
+    return next((t for t in (bool, int, float, str) if isinstance(value, t)), type(value))
+
+
+def _same(got, want, where: str) -> None:
+    """Raise ValueError unless ``got`` has the form of ``want``: the same keys, lengths, Python types, strings,
+    array shapes and dtypes, and finite numbers wherever ``want`` has them."""
+    if isinstance(want, dict):
+        if not isinstance(got, dict) or set(got) != set(want):
+            raise ValueError(f"{where}: keys {sorted(got) if isinstance(got, dict) else type(got).__name__}, "
+                             f"not {sorted(want)}")
+        for key in want:
+            _same(got[key], want[key], f"{where}/{key}")
+    elif isinstance(want, list):
+        if not isinstance(got, list) or len(got) != len(want):
+            raise ValueError(f"{where}: not a list of {len(want)}")
+        for i, (g, w) in enumerate(zip(got, want, strict=True)):
+            _same(g, w, f"{where}/{i}")
+    elif isinstance(want, np.ndarray):
+        if not isinstance(got, np.ndarray) or got.shape != want.shape or got.dtype != want.dtype:
+            raise ValueError(f"{where}: {getattr(got, 'shape', type(got).__name__)} {getattr(got, 'dtype', '')}, "
+                             f"not {want.shape} {want.dtype}")
+        if got.dtype.kind == "f" and not (np.isfinite(got) | ~np.isfinite(want)).all():
+            raise ValueError(f"{where}: non-finite values")
+    elif _kind(got) != _kind(want):
+        raise ValueError(f"{where}: a {type(got).__name__}, not a {type(want).__name__}")
+    elif isinstance(want, str) and got != want:
+        raise ValueError(f"{where}: {got[:40]!r}, not {want!r}")
+    elif isinstance(want, float) and math.isfinite(want) and not math.isfinite(got):
+        raise ValueError(f"{where}: {got}")
 
 
 def _check_sizes(meta: dict, arrays: dict, generations: int | None) -> None:
@@ -162,9 +247,9 @@ def _full(done: np.ndarray, generations: int) -> np.ndarray:
 def identity(path: Path) -> str | None:
     """The config hash a checkpoint file was written under, or None if it cannot be read."""
     try:
-        header, _, payload = Path(path).read_bytes().partition(b"\n")
-        with np.load(io.BytesIO(payload)) as z:
-            return str(json.loads(str(z["_meta"]))["config_hash"])
+        header, _, payload = read_bytes(path, _cap(None)).partition(b"\n")
+        meta = load_npz_bytes(payload, str(path), _specs(None, ()), ("_meta",))["_meta"]
+        return str(json.loads(str(meta))["config_hash"])
     except Exception:  # noqa: BLE001 - any unreadable file has no identity
         return None
 
@@ -173,14 +258,15 @@ def previous(path: Path) -> Path:
     return Path(path).with_suffix(".prev.bin")
 
 
-def resume(path: Path, config_hash: str, warn, generations: int | None = None) -> RunRecord | None:
+def resume(path: Path, config_hash: str, warn, generations: int | None = None, series=None,
+           template=None) -> RunRecord | None:
     """The newest good checkpoint at ``path`` (or its ``.prev``) of a run of ``generations``, or None;
-    ``warn(msg)`` explains fallbacks."""
+    ``warn(msg)`` explains fallbacks. ``series`` and ``template``: see :meth:`RunRecord.load`."""
     for candidate in (Path(path), previous(path)):
         if not candidate.exists():
             continue
         try:
-            return RunRecord.load(candidate, config_hash, generations)
+            return RunRecord.load(candidate, config_hash, generations, series, template)
         except CheckpointError as e:
             warn(f"{e}; ignoring it")
     return None

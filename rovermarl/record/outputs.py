@@ -33,6 +33,7 @@ import numpy as np
 
 from rovermarl.record.events import FILES as EVENT_FILES
 from rovermarl.record.provenance import provenance
+from rovermarl.record.safe_read import RunSize, load_npz, open_regular, read_json, read_text
 
 log = logging.getLogger("rovermarl")
 
@@ -144,7 +145,7 @@ def _checksum(meta: dict) -> str:
 def digest(path: Path) -> dict:
     """``{"bytes": size, "sha256": hex}`` of a file."""
     h = hashlib.sha256()
-    with open(path, "rb") as f:
+    with open_regular(path) as f:                                     # never a link or a FIFO
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return {"bytes": Path(path).stat().st_size, "sha256": h.hexdigest()}
@@ -174,15 +175,15 @@ def verify(out: Path, meta: dict) -> str | None:
 def finished(out: Path, config_hash: str) -> dict | None:
     """The ``run.json`` of ``out`` if it holds a finished run of the config with this hash, else None."""
     try:
-        meta = json.loads((Path(out) / "run.json").read_text())
-    except (OSError, ValueError):
+        meta = read_json(Path(out) / "run.json")
+    except OSError:
         return None
     return meta if isinstance(meta, dict) and meta.get("config_hash") == config_hash else None
 
 
-def load_score(out: Path) -> np.ndarray:
-    with np.load(Path(out) / "curve.npz") as z:
-        return z["score"]
+def load_score(out: Path, generations: int | None = None) -> np.ndarray:
+    """The score (G+1,) of a run's curve.npz, its members checked against ``generations`` before they are read."""
+    return load_npz(Path(out) / "curve.npz", RunSize(generations).curve(), ("score",), stored=True)["score"]
 
 
 def _savez(path: Path, arrays: dict) -> None:
@@ -248,7 +249,7 @@ def close_launch(job_dir: Path, record: dict | None = None) -> None:
         if not progress.is_file():
             return
         try:
-            record = {**json.loads(progress.read_text()), "interrupted": True}
+            record = {**read_json(progress), "interrupted": True}
             float(record["wall_time_s"]), int(record["team_evals"])
         except (OSError, ValueError, TypeError, KeyError) as e:
             log.warning("%s is unreadable (%s): the compute of the launch that left it is not counted",
@@ -256,7 +257,7 @@ def close_launch(job_dir: Path, record: dict | None = None) -> None:
             progress.unlink(missing_ok=True)
             return
     log_path = job_dir / INVOCATIONS
-    before = log_path.read_text() if log_path.is_file() else ""
+    before = read_text(log_path) if log_path.is_file() else ""
     with atomic_open(log_path, "w") as f:                              # rewritten whole: never a partial line
         f.write(before + json.dumps(record) + "\n")
     progress.unlink(missing_ok=True)

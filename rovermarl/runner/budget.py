@@ -62,7 +62,7 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
-    d = World.from_config(plain).obs_dim                             # the world's observation blocks
+    d = World.from_config(plain, trust=True).obs_dim                 # the world's observation blocks (composed)
     genome = n_params(d, h)
     seeds = int(plain["seeds"])
     memory = {

@@ -43,7 +43,7 @@ class Parts:
 def build(cfg) -> Parts:
     """World and algorithm of a composed config (a ``DictConfig`` or plain dict); bad values raise ConfigError."""
     cfg = upgrade(cfg if isinstance(cfg, DictConfig) else OmegaConf.create(cfg))
-    world = World.from_config(cfg)
+    world = World.from_config(cfg, trust=True)   # composed from the command line (or checked: check_targets)
     try:
         algorithm = build_operator(cfg.get("algorithm"), "algorithm", world=world)
     except errors.ConfigError as e:                  # keys of the groups an algorithm reads are named as they are

@@ -18,7 +18,7 @@ from rovermarl.runner.job import run_job
 
 def cold(cfg: DictConfig) -> bool:
     """Whether the job's rollout is not in numba's cache yet for its world and precision (a first run compiles)."""
-    world = World.from_config(cfg)
+    world = World.from_config(cfg, trust=True)   # composed from the command line (or checked: check_targets)
     try:
         index = world.compiled.rollout._cache._cache_file._load_index()   # {} when missing or stale
     except Exception:  # numba's internals moved: assume the worst, the message only says a compile may come

@@ -6,7 +6,6 @@ ones continue from their last good checkpoint, so the results equal those of an 
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from functools import partial
@@ -36,8 +35,9 @@ from rovermarl.record.outputs import (
 )
 from rovermarl.record.provenance import describe, provenance, same_code
 from rovermarl.record.rerun_log import write_rrd
+from rovermarl.record.safe_read import HASH, RunSize, check_tree, load_npy, read_json, safe_label
 from rovermarl.runner import budget
-from rovermarl.runner.chunk import advance, heldout_score, parts, to_plain
+from rovermarl.runner.chunk import Run, advance, heldout_score, parts, to_plain
 from rovermarl.runner.identity import config_hash
 from rovermarl.runner.validate import series_bytes, validate
 
@@ -49,6 +49,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     """Run ``cfg.seeds`` independent runs into ``job_dir``; returns the summary (also summary.json). The job dir is
     locked meanwhile (:mod:`rovermarl.record.lock`: another launch on it raises ``Locked``)."""
     validate(cfg)
+    check_tree(job_dir, "job dir")                      # a copied results dir: no link followed, no FIFO read
     with lock.hold(job_dir):
         return _run_job(cfg, Path(job_dir), name, choices)
 
@@ -64,13 +65,13 @@ def all_finished(cfg: DictConfig, job_dir: Path) -> bool:
     for seed in seeds:
         out = run_dir(job_dir, seed)
         meta = finished(out, key)
-        if meta is None or "heldout_score" not in meta or verify(out, meta) or _no_curve(out):
+        if meta is None or "heldout_score" not in meta or verify(out, meta) or _no_curve(out, cfg.generations):
             return False
         if cfg.resume == "strict" and not same_code(meta.get("provenance")):
             return False
     try:
-        summary = json.loads((job_dir / "summary.json").read_text())
-    except (OSError, ValueError):
+        summary = read_json(job_dir / "summary.json")
+    except OSError:
         return False
     return isinstance(summary, dict) and _current(summary, seeds, cfg.levels)
 
@@ -98,7 +99,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         if cfg.resume:
             _set_aside_other_identity(out, key, name)
         meta = finished(out, key) if cfg.resume else None
-        if meta is not None and (problem := verify(out, meta) or _no_curve(out)):
+        if meta is not None and (problem := verify(out, meta) or _no_curve(out, cfg.generations)):
             log.warning("%s: seed %d: %s; recomputing the run", name, seed, problem)
             (out / "run.json").unlink()
             meta = None
@@ -106,7 +107,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             other_code.append(meta.get("provenance"))
             meta = None if cfg.resume == "strict" else meta
         if meta is not None:
-            outcomes[seed] = outcome(load_score(out), cfg.levels)
+            outcomes[seed] = outcome(load_score(out, cfg.generations), cfg.levels)
             heldout[seed] = meta["heldout_score"] if "heldout_score" in meta else _backfill(out, meta, built, seed)
             continue
         todo.append(seed)
@@ -173,7 +174,8 @@ def _record(cfg, job_dir: Path, seed: int, key: str, series, name: str) -> RunRe
     """Run ``seed``'s record: from its checkpoint when it has a usable one, else fresh."""
     out = run_dir(job_dir, seed)
     problems: list[str] = []
-    rec = checkpoint.resume(out / "checkpoint.bin", key, problems.append, cfg.generations) if cfg.resume else None
+    rec = (checkpoint.resume(out / "checkpoint.bin", key, problems.append, cfg.generations, series,
+                             partial(_template, cfg, seed)) if cfg.resume else None)
     if rec is not None and rec.seed != seed:
         problems.append(f"{out / 'checkpoint.bin'} holds seed {rec.seed}, not {seed}; ignoring it")
         rec = None
@@ -185,20 +187,32 @@ def _record(cfg, job_dir: Path, seed: int, key: str, series, name: str) -> RunRe
     return rec or RunRecord(seed, cfg.generations, series)
 
 
+def _template(cfg, seed: int) -> dict:
+    """A fresh run ``seed``'s state (:meth:`Run.state <rovermarl.runner.chunk.Run.state>`), initial conditions and
+    first events: what a checkpoint must match, key for key, shape for shape, before any of it reaches the kernel."""
+    run = Run(to_plain(cfg), seed)
+    out = {"state": run.state(), "ic_xy": run.ic[0], "ic_heading": run.ic[1],
+           "events": {f"{f}_{k}": v for f, arrays in run.observer.drain().items() for k, v in arrays.items()}}
+    if run.ic[2].shape[-1]:
+        out["ic_layout"] = run.ic[2]
+    return out
+
+
 def _read_summary(path: Path, name: str) -> dict:
     """The job's summary.json, or {} (rebuilt from the runs) if it cannot be read."""
     try:
-        summary = json.loads(path.read_text())
-    except (OSError, ValueError) as e:
+        summary = read_json(path)
+    except OSError as e:
         log.warning("%s: %s is unreadable (%s); rebuilding it from the runs", name, path, type(e).__name__)
         return {}
     return summary if isinstance(summary, dict) else {}
 
 
-def _no_curve(out: Path) -> str | None:
-    """What is wrong with a finished run's score curve (unreadable, or not a finite number), else None."""
+def _no_curve(out: Path, generations: int) -> str | None:
+    """What is wrong with a finished run's score curve (unreadable, not of ``generations``, or not a finite number),
+    else None."""
     try:
-        score = load_score(out)
+        score = load_score(out, generations)
     except Exception as e:  # noqa: BLE001 - any unreadable curve is recomputed
         return f"{out / 'curve.npz'} cannot be read ({type(e).__name__})"
     return None if np.isfinite(score).all() else f"{out / 'curve.npz'} holds non-finite scores"
@@ -209,13 +223,14 @@ def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
     ``seed_XXX.<its hash>``, so the run starts afresh beside it and the two never mix."""
     other = None
     try:
-        other = json.loads((out / "run.json").read_text()).get("config_hash")
-    except (OSError, ValueError, AttributeError):
+        other = read_json(out / "run.json").get("config_hash")
+    except (OSError, AttributeError):
         pass
     for path in (out / "checkpoint.bin", checkpoint.previous(out / "checkpoint.bin")):
         other = other or (checkpoint.identity(path) if path.exists() else None)
     if not other or other == key:
         return
+    other = safe_label(other, f"{name}: {out.name}'s config hash", log.warning, HASH)   # a path part: checked
     aside = out.with_name(f"{out.name}.{other[:12]}")
     n = 1
     while aside.exists():
@@ -227,7 +242,7 @@ def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
 
 def _backfill(out: Path, meta: dict, built, seed: int) -> float:
     """The held-out score of a run finished before runs recorded one, from its final team; added to its run.json."""
-    score = heldout_score(built, seed, np.load(out / "genomes.npy"))
+    score = heldout_score(built, seed, load_npy(out / "genomes.npy", RunSize.of(None, built.world).genomes()))
     write_run_json(out, {**meta, "heldout_score": score})
     return score
 

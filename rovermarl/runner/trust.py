@@ -107,6 +107,8 @@ def _walk(node, path: str, group: str | None, allow: Groups, legacy: bool, sourc
             raise errors.ConfigError(key, target, "only the node of a config group (" + ", ".join(allow.classes)
                                      + f") may name a class, in {source}: {REFUSE}")
         target = _canonical(target, legacy)
+        if not isinstance(target, str):
+            raise errors.ConfigError(key, target, f"must be a dotted class name (a string), in {source}: {REFUSE}")
         if target not in allow.classes[group]:
             where = ("is outside rovermarl" if not str(target).startswith("rovermarl.") else
                      f"is not a class of the config group {group} ({', '.join(sorted(allow.classes[group]))})")
