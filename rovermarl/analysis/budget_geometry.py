@@ -13,7 +13,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-
 from scipy import stats as scipy_stats
 
 from rovermarl.analysis import stats

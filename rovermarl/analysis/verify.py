@@ -10,8 +10,6 @@ ones, and both scores must equal, bit for bit, what the job's ``summary.json`` (
 
 from __future__ import annotations
 
-import json
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -19,10 +17,11 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl.analysis.results import ResultsError
+from rovermarl.record.safe_read import Spec, check_tree, load_npy, load_npz, read_json, read_yaml
 from rovermarl.runner.chunk import build, heldout_score, to_plain, upgrade
 from rovermarl.runner.trust import check_targets
 
-TEAMS_LIMIT = 64 << 20    # bytes of a genomes.npz's arrays: 1000 runs of 4 x 2000 float64 parameters fit
+RUNS = 100_000            # runs a job's genomes.npz may hold
 
 
 @dataclass
@@ -36,59 +35,25 @@ class Checked:
 
 def _config(job: Path) -> dict:
     for path in (job / "config.yaml", job / ".hydra" / "config.yaml"):
-        if path.is_file() and not path.is_symlink():
-            cfg = upgrade(OmegaConf.load(path))
+        if path.is_file():
+            cfg = upgrade(OmegaConf.create(read_yaml(path)))
             check_targets(cfg, str(path))
             return to_plain(cfg)
     raise ResultsError(f"{job}: no config.yaml")
 
 
-def _read_npz(path: Path, shape_of: dict) -> dict:
-    """The arrays of ``path``, each checked against ``shape_of[name](shape)`` from its header before it is read; no
-    member but those; at most :data:`TEAMS_LIMIT` bytes in all."""
-    try:
-        return _read_members(path, shape_of)
-    except (OSError, ValueError, zipfile.BadZipFile) as e:
-        raise ResultsError(f"{path}: unreadable ({e})") from None
-
-
-def _read_members(path: Path, shape_of: dict) -> dict:
-    with zipfile.ZipFile(path) as z:
-        names = {i.filename.removesuffix(".npy"): i for i in z.infolist()}
-        if set(names) != set(shape_of) or sum(i.file_size for i in names.values()) > TEAMS_LIMIT:
-            raise ResultsError(f"{path}: members {sorted(names)} (want {sorted(shape_of)}, at most {TEAMS_LIMIT} B)")
-        out = {}
-        for name, info in names.items():
-            with z.open(info) as f:
-                header = {(1, 0): np.lib.format.read_array_header_1_0,
-                          (2, 0): np.lib.format.read_array_header_2_0}.get(np.lib.format.read_magic(f))
-                if header is None:
-                    raise ResultsError(f"{path}: {name} is not a .npy array of format 1.0 or 2.0")
-                shape, _, dtype = header(f)
-                if not shape_of[name](shape, dtype):
-                    raise ResultsError(f"{path}: {name} has shape {shape} and dtype {dtype}: not this job's")
-                f.seek(0)
-                out[name] = np.lib.format.read_array(f, allow_pickle=False)
-    return out
-
-
 def _teams(job: Path, world) -> dict[int, np.ndarray]:
-    """Seed -> final team (N, P) of every run of ``job`` that kept one."""
-    team_shape = (world.n_rovers, world.n_params)
+    """Seed -> final team (N, P) of every run of ``job`` that kept one; each file's header checked before it is read
+    (:mod:`rovermarl.record.safe_read`)."""
+    n, p = world.n_rovers, world.n_params
     if (job / "genomes.npz").is_file():
-        a = _read_npz(job / "genomes.npz", {
-            "seed": lambda s, d: len(s) == 1 and d.kind == "i",
-            "genomes": lambda s, d: s[1:] == team_shape and d == np.float64})
+        a = load_npz(job / "genomes.npz", {"seed": Spec((None,), "i", RUNS), "genomes": Spec((None, n, p), "f", RUNS)},
+                     required=("seed", "genomes"))
         if len(a["seed"]) != len(a["genomes"]):
             raise ResultsError(f"{job / 'genomes.npz'}: {len(a['seed'])} seeds, {len(a['genomes'])} teams")
-        return {int(s): g for s, g in zip(a["seed"], a["genomes"], strict=True)}
-    out = {}
-    for path in sorted((job / "runs").glob("seed_*/genomes.npy")):
-        g = np.load(path, mmap_mode="r", allow_pickle=False)
-        if g.shape != team_shape:
-            raise ResultsError(f"{path}: shape {g.shape}, want {team_shape}")
-        out[int(path.parent.name.removeprefix("seed_"))] = np.array(g, dtype=np.float64)
-    return out
+        return {int(s): np.asarray(g, dtype=np.float64) for s, g in zip(a["seed"], a["genomes"], strict=True)}
+    return {int(path.parent.name.removeprefix("seed_")): np.asarray(load_npy(path, Spec((n, p), "f")), np.float64)
+            for path in sorted((job / "runs").glob("seed_*/genomes.npy"))}
 
 
 def _recorded(job: Path, seed: int, summary: dict) -> tuple[float | None, float | None]:
@@ -97,7 +62,7 @@ def _recorded(job: Path, seed: int, summary: dict) -> tuple[float | None, float 
     final, held = (summary.get(key, {}).get(str(seed)) for key in ("final_score", "heldout_score"))
     run_json = job / "runs" / f"seed_{seed:03d}" / "run.json"
     if run_json.is_file():
-        run = json.loads(run_json.read_text())
+        run = read_json(run_json)
         for key, value in (("final_score", final), ("heldout_score", held)):
             if value is not None and run.get(key) != value:
                 raise ResultsError(f"{run_json}: {key} {run.get(key)} against {value} in summary.json")
@@ -110,7 +75,7 @@ def verify_job(job: Path) -> Checked:
     cfg = _config(job)
     parts = build(cfg)
     world = parts.world
-    summary = json.loads((job / "summary.json").read_text())
+    summary = read_json(job / "summary.json")
     teams = _teams(job, world)
     if not teams:
         return Checked(job.name, False, "no final teams")
@@ -140,6 +105,7 @@ def verify(path: Path) -> list[Checked]:
     path = Path(path)
     if not path.is_dir():
         raise ResultsError(f"{path}: not a directory")
+    check_tree(path)                     # no link, FIFO or device anywhere under it: nothing is followed
     jobs = [path] if (path / "summary.json").is_file() else sorted(p.parent for p in path.glob("*/summary.json"))
     jobs = [j for j in jobs if (j / "genomes.npz").is_file() or any((j / "runs").glob("seed_*/genomes.npy"))]
     if not jobs:
