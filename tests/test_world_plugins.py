@@ -26,7 +26,7 @@ def _world(name: str, **env):
                           OmegaConf.load(ROOT / f"examples/{name}/env/{name}.yaml"), env)
     cfg.pop("defaults")
     setup = OmegaConf.load(ROOT / "conf/setup/duo.yaml")
-    return World.from_config(OmegaConf.create({"setup": setup, "env": cfg, "policy": {"hidden": 16}}))
+    return World.from_config(OmegaConf.create({"setup": setup, "env": cfg, "policy": {"hidden": 16}}), trust=True)
 
 
 @pytest.fixture(scope="module", params=PLUGINS)
@@ -47,7 +47,7 @@ def test_a_plugin_trains_from_its_command_and_its_scores_are_its_worlds(trained)
     run = out / "runs" / "seed_000"
     assert {"curve.npz", "run.rrd", "genomes.npy", "initial_conditions.npz"} <= {p.name for p in run.iterdir()}
     from rovermarl.env.world import World
-    world = World.from_config(OmegaConf.load(out / ".hydra" / "config.yaml"))     # the run's own world
+    world = World.from_config(OmegaConf.load(out / ".hydra" / "config.yaml"), trust=True)   # the run's own world
     assert type(world).__name__ == type(_world(name)).__name__
     with np.load(run / "initial_conditions.npz") as z:
         ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)

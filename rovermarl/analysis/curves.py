@@ -17,6 +17,7 @@ import numpy as np
 from rovermarl.record.safe_read import FREE, RunSize, Spec, load_npz
 
 GRID_POINTS = 400
+EXPORTED_BYTES = 256 << 20      # an exported job's curves at most (results/paper's largest holds under 1 MB)
 
 
 def log_grid(generations: int, points: int = GRID_POINTS) -> np.ndarray:
@@ -92,11 +93,13 @@ def read_exported(job_dir: Path, seeds: int | None = None, generations: int | No
     r = seeds if isinstance(seeds, int) and 0 < seeds <= 1 << 16 else None
     g = generations if isinstance(generations, int) and 0 <= generations <= 10**10 else None
     steps = FREE if r is None or g is None else min(r * (g + 1), FREE)
+    wide = GRID_POINTS + 1 if r is not None else 4096                  # the grid's points (and R when unknown)
     z = load_npz(Path(job_dir) / "curves.npz", {
         "seed": Spec((r,), "iu", 1 << 16), "generations": Spec((), "iu"), "step_run": Spec((None,), "iu", steps),
         "step_generation": Spec((None,), "iu", steps), "step_score": Spec((None,), "f", steps),
-        "grid": Spec((None,), "iu", GRID_POINTS + 1), "score": Spec((r, None), "f", max(GRID_POINTS + 1, 1 << 16)), "probs": Spec((r, None, None), "f", max(GRID_POINTS + 1, 64))},
-        required=("seed", "generations", "step_run", "step_generation", "step_score", "grid"))
+        "grid": Spec((None,), "iu", GRID_POINTS + 1), "score": Spec((r, None), "f", wide),
+        "probs": Spec((r, None, None), "f", wide)},
+        required=("seed", "generations", "step_run", "step_generation", "step_score", "grid"), max_bytes=EXPORTED_BYTES)
     curves = Curves(z["seed"], int(z["generations"]), z["step_run"], z["step_generation"], z["step_score"])
     return Exported(curves, z["grid"], z.get("probs"))
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 from omegaconf import OmegaConf
 
 from rovermarl import errors
@@ -14,7 +16,7 @@ def make_world(setup: str = "solo", **overrides) -> World:
     ``policy/mlp.yaml``). Keyword overrides name World fields, e.g. ``make_world("duo", steps=20)`` or the world
     options of SPEC section 8, ``make_world("duo", reward="any_step", speed="clip", poi_type="sign")``."""
     path = CONF_DIR / "setup" / f"{setup}.yaml"
-    if not path.exists():
+    if not isinstance(setup, str) or not re.fullmatch(r"[A-Za-z0-9_\-]+", setup) or not path.is_file():
         options = sorted(p.stem for p in (CONF_DIR / "setup").glob("*.yaml"))
         raise errors.ConfigError("setup", setup, "unknown setup; allowed: " + ", ".join(options))
     setup_file = OmegaConf.load(path)
