@@ -97,3 +97,20 @@ def test_the_observer_refuses_a_team_without_positions_in_one_line():
     run = Run(to_plain(make_cfg("generations=5")), 0)
     with pytest.raises(AlgorithmError, match=r"^the behaviour observer was told of a team without its final"):
         run.observer.accepted(1, run.team, 1.0, True, None)
+
+
+def test_shards_give_the_local_evaluators_trajectories(ray_session):
+    """IC shards implement the whole contract: a credit-based learner (rollout) runs on them, bit for bit."""
+    from rovermarl.parallel.shards import ShardActor, ShardedEvaluation
+    cfg = to_plain(make_cfg("setup=duo", "generations=3"))
+    local = Run(cfg, 4).evaluate
+    actors = [ShardActor.remote(cfg) for _ in range(2)]
+    try:
+        sharded = ShardedEvaluation(actors, local.world, local.ic)
+        team = np.random.default_rng(0).uniform(-2, 2, (4, local.world.n_params))
+        for got, want in zip(sharded.rollout(team), local.rollout(team), strict=True):
+            np.testing.assert_array_equal(got, want)
+        assert sharded.measure(team).score == local.measure(team).score and sharded.kernel_inputs() is None
+    finally:
+        for a in actors:
+            ray_session.kill(a)

@@ -38,8 +38,9 @@ def refusal(algo, fresh: bool, local: bool) -> str | None:
     """Why the compiled loop cannot run CC11ES ``algo`` (None: it can): under ``evaluation.fresh_ic`` (``fresh``),
     with teams not scored in this process (``local`` false: IC shards), on a world plug-in, or with an operator
     that is not exactly one of :data:`OPERATORS`."""
-    for attr, classes in OPERATORS.items():
-        op = getattr(algo, attr)
+    ops = {"selector": algo.selector, "mutate": algo.mutate, "accept": algo.accept, "composition": algo.composition}
+    for attr, op in ops.items():
+        classes = OPERATORS[attr]
         if type(op) not in classes:
             return (f"it runs only the packaged operators {', '.join(c.__name__ for c in classes)} as "
                     f"{attr}, not {type(op).__module__}.{type(op).__name__} (the Python loop runs any)")
@@ -71,7 +72,7 @@ def advance(algo, state: dict, generation: int, n: int, evaluate, observer) -> t
         f_before = f_parent
         t, f_parent = _generations(
             t, n, parents, f_parent, team.n_agents, isinstance(team, HomogeneousTeam),
-            rng_mut, rng_sel, 0 if exp3 else selector.value, arms, getattr(selector, "gamma", 0.0),
+            rng_mut, rng_sel, 0 if exp3 else selector.value, arms, selector.gamma if exp3 else 0.0,
             selector.reward_rule == "gain", selector.f_max, log_w, probs,
             mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]), mut.low, mut.high, algo.accept.strict,
             *args, final, parent_poi, poi_xy, radius,
