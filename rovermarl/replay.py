@@ -17,6 +17,7 @@ import shlex
 import shutil
 import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -254,6 +255,8 @@ def main(argv: list[str] | None = None) -> None:
             rrd = target if target.suffix == ".rrd" else target / "run.rrd"
             if not rrd.exists():
                 raise ReplayError(f"{target}: has no run.rrd (recorded with record.rerun=false?); try --resim")
+            if not stat.S_ISREG(rrd.stat().st_mode):                # a FIFO would hang the reader
+                raise ReplayError(f"{rrd}: not a regular file")
         check_rrd(rrd)
         open_viewer(rrd, viewer=not a.no_viewer, web=a.web, web_port=a.web_port, grpc_port=a.grpc_port, bind=a.bind)
     except (ReplayError, OSError, ValueError, KeyError, yaml.YAMLError, OmegaConfBaseException) as e:

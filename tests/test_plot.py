@@ -218,8 +218,11 @@ def test_callback_never_raises(tmp_path, paper_sweep, caplog):
         callback.on_multirun_end(OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path / "nothing")}}}))
         callback.on_multirun_end(OmegaConf.create({}))
     assert len([r for r in caplog.records if r.levelno == logging.WARNING]) == 2
-    callback.on_multirun_end(OmegaConf.create({"hydra": {"sweep": {"dir": str(paper_sweep)}}}))
-    assert (paper_sweep / "figures" / "curves_duo.png").exists()
+    callback.on_multirun_end(OmegaConf.create({"hydra": {"sweep": {"dir": str(paper_sweep)},
+                                                         "overrides": {"task": ["k=1,2", "setup=solo"]}}}))
+    assert (paper_sweep / "figures" / "curves_solo.png").exists()          # only the launch's own jobs are read
+    index = json.loads((paper_sweep / "figures" / "index.json").read_text())
+    assert sorted(j["dir"] for j in index["jobs"]) == ["k=1,setup=solo", "k=2,setup=solo"]
 
 
 def test_real_tiny_sweep_with_callback(tmp_path):

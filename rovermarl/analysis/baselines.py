@@ -27,6 +27,7 @@ from rovermarl.analysis.levels import setup_rank
 from rovermarl.analysis.results import ResultsError, load_study
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.record.outputs import atomic_open, first_reaching
+from rovermarl.record.safe_read import read_json
 
 LEVELS = {"solo": (3, 4), "duo": (4, 5, 6), "trio": (4, 5)}   # up to each setup's optimum (4, 6 and 5)
 METHODS = ("k=1", "k=2", "adaptive", "ccea G", "ccea D", "ccea D++")   # the study's jobs: every method, every setup
@@ -45,7 +46,7 @@ def export(sweep: Path, out: Path, log=print) -> dict:
         levels = LEVELS.get(job.setup, ())
         runs = {}
         for run in sorted(job.runs, key=lambda r: r.seed):
-            meta = json.loads((run.path / "run.json").read_text())
+            meta = read_json(run.path / "run.json")
             firsts = {str(lv): first_reaching(run.score, lv) for lv in levels}
             runs[str(run.seed)] = {"final": float(run.score[-1]), "heldout": float(meta["heldout_score"]),
                                    "evals_to": {lv: None if g is None else int(job.evals(g))

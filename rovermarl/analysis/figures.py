@@ -31,7 +31,16 @@ from rovermarl.analysis.fig6 import fig_fig6, fig_switched
 from rovermarl.analysis.levels import threshold_for
 from rovermarl.analysis.results import load
 from rovermarl.analysis.stamp import inputs_stamp, options
-from rovermarl.analysis.sweep import Job, RunCurve, SweepError, fig6_job, find_jobs, load_job, soft_strict_pairs
+from rovermarl.analysis.sweep import (
+    Job,
+    RunCurve,
+    SweepError,
+    check_dir,
+    fig6_job,
+    find_jobs,
+    load_job,
+    soft_strict_pairs,
+)
 from rovermarl.record.outputs import write_json
 from rovermarl.record.safe_read import RunSize, load_npz, refuse_odd
 
@@ -118,7 +127,7 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
 
     Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
     """
-    path = Path(path)
+    path = check_dir(path)
     out = Path(out) if out is not None else path / "figures"
     try:
         refuse_odd(out, "figures dir")                                   # a linked figures dir: written elsewhere

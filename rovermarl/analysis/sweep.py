@@ -247,9 +247,9 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     return job
 
 
-def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job], list[str]]:
-    """All job dirs under ``path`` (a sweep dir or one job dir), sorted by setup then method; plus notes. ``only``:
-    just these job dirs (a relaunch's own). A link, FIFO or device anywhere under ``path`` is refused first."""
+def check_dir(path: Path) -> Path:
+    """``path`` if it is a non-empty directory holding only directories and regular files, else :class:`SweepError`
+    (one line)."""
     path = Path(path)
     if not path.exists():
         raise SweepError(f"no such directory: {path}")
@@ -261,6 +261,13 @@ def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job]
         check_tree(path)
     except OSError as e:
         raise SweepError(str(e)) from None
+    return path
+
+
+def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job], list[str]]:
+    """All job dirs under ``path`` (a sweep dir or one job dir), sorted by setup then method; plus notes. ``only``:
+    just these job dirs (a relaunch's own). A link, FIFO or device anywhere under ``path`` is refused first."""
+    path = check_dir(path)
     dirs = {p.parent for p in path.rglob("summary.json")}
     dirs |= {p.parent.parent.parent for p in path.rglob("runs/seed_*/curve.npz")}
     if only is not None:
