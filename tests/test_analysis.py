@@ -9,6 +9,7 @@ import sys
 import numpy as np
 import pytest
 
+from rovermarl.algorithms import Evaluator
 from rovermarl.analysis import stats
 from rovermarl.analysis.claims import claims
 from rovermarl.analysis.curves import Curves, log_grid
@@ -72,14 +73,27 @@ def _final_poi(world, genomes, ic):
     return np.where(inside.any(axis=-1), inside.argmax(axis=-1), -1)
 
 
+class _Recording(Evaluator):
+    """The run's evaluator, keeping every team it measures (no kernel inputs: the Python loop runs)."""
+
+    def __init__(self, inner, teams):
+        self.inner, self.teams = inner, teams
+
+    def measure(self, genomes):
+        self.teams.append(genomes.copy())
+        return self.inner.measure(genomes)
+
+    def rollout(self, genomes):
+        return self.inner.rollout(genomes)
+
+
 @pytest.mark.parametrize("overrides", [["k=1"], ["k=2"], ["k=adaptive"], ["team=homogeneous"]])
 def test_switched_counts_episodes_where_unmutated_rovers_change_poi(overrides):
     cfg = make_cfg("setup=duo", "generations=120", *overrides)
     run = Run(cfg, 5)
     parent_genomes = run.team.copy()
     teams = []
-    inner = run.evaluate
-    run.evaluate = lambda genomes: (teams.append(genomes.copy()), inner(genomes))[1]
+    run.evaluate = _Recording(run.evaluate, teams)
     h = run.advance(120)
     world = run.parts.world
     parent = _final_poi(world, parent_genomes, run.ic)
