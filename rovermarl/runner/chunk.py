@@ -105,10 +105,12 @@ class Evaluation:
     :class:`~rovermarl.env.evaluated.Evaluated` carrying the team's final positions (E, N, 2) with ``keep_final``
     (:attr:`final_xy` is the buffer they are written to). With ``fresh_seed`` (the run's
     seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and :meth:`draw` moves to a generation's own set.
-    :attr:`calls` counts the team evaluations."""
+    :attr:`calls` counts the team evaluations. :meth:`many` scores a population in one call. The initial conditions
+    are prepared once (``World.prepare``), so a call checks only the genomes."""
 
     def __init__(self, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.world, self.ic, self.seed = world, ic, fresh_seed
+        self.prepared = world.prepare(ic)
         self.fresh = fresh_seed is not None
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
         self.calls = 0
@@ -116,11 +118,20 @@ class Evaluation:
     def draw(self, generation: int) -> None:
         """Score on the initial conditions of ``generation`` from now on (:meth:`World.run_ic`)."""
         self.ic = self.world.run_ic(self.seed, generation)
+        self.prepared = self.world.prepare(self.ic)
 
     def __call__(self, genomes: np.ndarray) -> float:
         self.calls += 1
-        score = self.world.evaluate(genomes, self.ic, self.final_xy)
+        score = self.world.evaluate(genomes, self.prepared, self.final_xy)
         return Evaluated(score, None if self.final_xy is None else self.final_xy.copy())
+
+    def many(self, teams: np.ndarray) -> list[Evaluated]:
+        """What :meth:`__call__` returns for each of B teams (B, N, P), bit for bit, from one
+        ``World.evaluate_many`` call in this thread (a run's process already has its core)."""
+        self.calls += len(teams)
+        final = None if self.final_xy is None else np.empty((len(teams), *self.final_xy.shape))
+        scores = self.world.evaluate_many(teams, self.prepared, final, workers=1)
+        return [Evaluated(float(f), None if final is None else final[b]) for b, f in enumerate(scores)]
 
     def kernel_inputs(self) -> tuple:
         """``(world, ic, final_xy)``: what a compiled generation loop needs to evaluate teams itself, as this does
