@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from rovermarl.jit import say_if_cold
+from rovermarl import jit
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
 _NO_FINAL = np.empty((0, 1, 2))
@@ -67,20 +67,16 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     per_pass = max(1, PASS_LANES // e)
     run = world.compiled.evaluate_many
     args = (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass)
-    say_if_cold(run, args, "the world's rollout")
+    jit.say_if_cold(run, args, "the world's rollout")
     threads = min(_cores() if workers is None else workers, b // 2) if b >= 4 else 1
     if threads <= 1:
         run(*args)
     else:
-        n = world.n_rovers
-        cuts = [b * k // threads for k in range(threads + 1)]
-        parts = [(teams[n * lo:n * hi], p.xy, p.heading, p.fields, returns[e * lo:e * hi], scores[lo:hi],
+        n, size = world.n_rovers, per_pass * max(1, b // (4 * threads * per_pass))   # about 4 tasks a thread
+        tasks = [(teams[n * lo:n * hi], p.xy, p.heading, p.fields, returns[e * lo:e * hi], scores[lo:hi],
                   sane[lo:hi], final if final_xy is None else final[e * lo:e * hi], per_pass)
-                 for lo, hi in zip(cuts[:-1], cuts[1:], strict=True)]
-        futures = [_pool(threads - 1).submit(run, *part) for part in parts[1:]]
-        run(*parts[0])
-        for f in futures:
-            f.result()
+                 for lo, hi in ((lo, min(lo + size, b)) for lo in range(0, b, size))]
+        _share(run, tasks, threads)
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
@@ -94,6 +90,21 @@ def warn_insane(sane: np.ndarray, returns: np.ndarray) -> None:
     if bad.size:
         warnings.warn(f"team {int(bad[0])}'s genomes hold nan, inf or magnitudes >= 1e150: the rollout plays them as "
                       "non-finite actions, which score 0", RuntimeWarning, stacklevel=4)
+
+
+def _share(run, tasks: list, threads: int) -> None:
+    """``run(*task)`` for each task, on ``threads`` threads (this one and a pool's) taking the next task as each
+    finishes one: a thread on a busier core does fewer (the tasks write disjoint parts of the outputs)."""
+    left = iter(range(len(tasks)))                      # next() on it is atomic under the GIL
+
+    def work():
+        for i in left:
+            run(*tasks[i])
+
+    futures = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
+    work()
+    for f in futures:
+        f.result()
 
 
 def _cores() -> int:
