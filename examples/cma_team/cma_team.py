@@ -1,8 +1,9 @@
 """A team optimised with CMA-ES (the ``cma`` package) through rovermarl's population API: a complete example.
 
-Each CMA-ES generation asks for a population of genomes, scores them all in one compiled call
-(``World.evaluate_many``) on the initial conditions run 0 of the CLI is scored on (``World.run_ic``), and tells
-CMA-ES their scores (negated: it minimises). The team is homogeneous (``World.homogeneous``: one genome, N copies),
+Each CMA-ES generation asks for a population of genomes, scores them all in one call (``World.evaluate_many``:
+several teams per pass of the compiled rollout, the population split over the cores) on the initial conditions run
+0 of the CLI is scored on (``World.run_ic``, prepared once: ``World.prepare``), and tells CMA-ES their scores
+(negated: it minimises). The team is homogeneous (``World.homogeneous``: one genome, N copies),
 so the search space is one rover's 658 parameters. At the end the best team is also scored on its held-out initial
 conditions (``World.heldout_ic``), as ``summary.json`` does for the CLI's runs.
 
@@ -24,7 +25,7 @@ from rovermarl import make_world
 
 def optimise(setup: str = "solo", evaluations: int = 20000, seed: int = 0, sigma: float = 0.5) -> dict:
     world = make_world(setup)
-    ic = world.run_ic(seed)
+    ic = world.prepare(world.run_ic(seed))                                    # checked once, in the kernel's dtype
     es = cma.CMAEvolutionStrategy(np.zeros(world.n_params), sigma,
                                   {"seed": seed + 1, "verbose": -9, "CMA_diagonal": True})
     best, best_genome, used, t0 = -np.inf, None, 0, time.perf_counter()

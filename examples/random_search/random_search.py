@@ -1,8 +1,9 @@
 """(1+lambda) random search over the whole team: a complete algorithm plug-in, one class plus one yaml.
 
 Each generation draws ``lam`` child teams, each the parent team with ``N(0, sigma^2)`` added to every parameter
-of every rover, evaluates them all and keeps the best child if it scores at least as well as the parent. A
-generation therefore costs ``lam`` team evaluations. Besides the score it records one series of its own,
+of every rover, evaluates them all (in one ``World.evaluate_many`` call, through the runner's ``evaluate.many``
+where there is one) and keeps the best child if it scores at least as well as the parent. A generation therefore
+costs ``lam`` team evaluations. Besides the score it records one series of its own,
 ``best_child`` (the best child's score in each generation).
 
 Run it from the repository root (``python -m`` puts the current directory on the import path)::
@@ -50,7 +51,7 @@ class RandomSearch(Algorithm):
         best_child, after = np.empty(n), np.empty(n)
         for t in range(n):
             children = team + rng.normal(0.0, self.sigma, (self.lam, *team.shape))   # (lam, N, P)
-            measured = [evaluate.measure(child) for child in children]   # scores and final positions
+            measured = evaluate.measure_many(children)            # scores and final positions, in one call
             scores = np.array([m.score for m in measured])
             best = int(np.argmax(scores))
             if scores[best] >= score:

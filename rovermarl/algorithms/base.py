@@ -64,7 +64,8 @@ class Evaluator(ABC):
 
     ``fresh`` is true under ``evaluation.fresh_ic``: an algorithm with ``fresh_ic = True`` calls :meth:`draw` once
     per generation and scores every team it compares there. ``calls`` counts the team evaluations made
-    (:meth:`score`, :meth:`measure` and :meth:`rollout` each add one; a compiled loop adds its own).
+    (:meth:`score`, :meth:`measure` and :meth:`rollout` each add one, :meth:`measure_many` one per team; a compiled
+    loop adds its own).
     """
 
     fresh: bool = False
@@ -77,6 +78,10 @@ class Evaluator(ABC):
     def score(self, genomes: np.ndarray) -> float:
         """The team's score F."""
         return self.measure(genomes).score
+
+    def measure_many(self, teams: np.ndarray) -> list[Measured]:
+        """:meth:`measure` of each of B teams (B, N, P), in order (an evaluation may score them in one call)."""
+        return [self.measure(team) for team in teams]
 
     @abstractmethod
     def rollout(self, genomes: np.ndarray) -> Rollout:

@@ -14,7 +14,6 @@ recordings follow (``docs/ARCHITECTURE.md``, "Adding a world").
 from __future__ import annotations
 
 import math
-import warnings
 from collections.abc import Collection
 from dataclasses import dataclass, field, fields
 from functools import cached_property
@@ -27,12 +26,11 @@ from rovermarl import errors, policy
 from rovermarl.env import kernel
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
+from rovermarl.env.prepared import Prepared, genomes_in, score_teams, warn_insane
 from rovermarl.env.scenario import Scenario
-from rovermarl.env.starts import Starts
+from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.jit import say_if_cold
 
-_NO_XY = np.empty((0, 1, 1, 2))
-_NO_HEADING = np.empty((0, 1, 1))
 _NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
 
@@ -116,6 +114,7 @@ class World(Starts, Scenario):
         types = {"coupling": c - 1.0, "sign": np.where(c == 1, -1.0, 1.0), "value": self._value.copy()}
         object.__setattr__(self, "_type", types[self.poi_type])
         object.__setattr__(self, "_obs_dim", sum(low.size for _, low, _ in self.obs_blocks()))
+        object.__setattr__(self, "_team_shape", (self.n_rovers, policy.n_params(self.obs_dim, self.hidden)))
         f = np.dtype(self.dtype).type                              # env.dtype: the kernel's precision
         object.__setattr__(self, "_float", f)
         object.__setattr__(self, "kernel", kernel.KernelWorld(    # the world as the kernel reads it, passed whole
@@ -176,7 +175,7 @@ class World(Starts, Scenario):
     @property
     def n_params(self) -> int:
         """Genome length of one rover's policy (658 by default)."""
-        return policy.n_params(self.obs_dim, self.hidden)
+        return self._team_shape[1]
 
     @property
     def w_max(self) -> float:
@@ -241,47 +240,61 @@ class World(Starts, Scenario):
         return out.reshape(xy.shape[:-3])
 
     # ---- rollouts -----------------------------------------------------------------------------
+    def prepare(self, ic) -> Prepared:
+        """Initial conditions ``ic`` (:class:`InitialConditions`, or xy (E, N, 2), heading (E, N)) checked and in the
+        kernel's precision once: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method takes ``ic``
+        (:meth:`evaluate`, :meth:`returns`, :meth:`evaluate_many`, :meth:`rollout`, :meth:`kernel_args`); each call then
+        checks and converts only the genomes. A snapshot: later changes to ic's arrays are not seen. Plain ``ic`` is
+        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``)."""
+        if type(ic) is Prepared:
+            return ic if ic.world is self else self.prepare(ic.ic)
+        xy0, h0, layout = (a.copy() for a in self._batch(*ic))
+        f, k = self._float, self.kernel_for(layout)
+        return Prepared(InitialConditions(xy0, h0, layout), xy0.astype(f), h0.astype(f), k, tuple(k), self)
+
     def rollout(self, genomes: np.ndarray, ic) -> Rollout:
         """Full trajectories of a team: genomes (N, P), ic (:class:`InitialConditions`, or xy (E, N, 2), heading
-        (E, N))."""
-        genomes, (xy0, h0, layout) = self._team(genomes), self._batch(*ic)
-        e = h0.shape[0]
+        (E, N), or :meth:`prepare`'s)."""
+        p, genomes = self._prepared(ic), self._team(genomes)
+        e = p.episodes
         traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
                        np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e))
-        self._run(genomes, xy0, h0, layout, traj.returns, traj.xy, traj.heading)
+        args = (genomes.astype(self._float), p.xy, p.heading, p.kernel, traj.returns, traj.xy, traj.heading, _NO_FINAL)
+        say_if_cold(self.compiled.rollout, args, "the world's rollout")
+        self.compiled.rollout(*args)
         return traj
 
     def returns(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> np.ndarray:
-        """Per-episode team returns (E,) of a team genomes (N, P) from ic.
+        """Per-episode team returns (E,) of a team genomes (N, P) from ic (or :meth:`prepare`'s).
 
         If given, ``final_xy`` (E, N, 2) receives the rovers' final positions (at no extra cost).
         """
-        genomes, (xy0, h0, layout) = self._team(genomes), self._batch(*ic)
-        out = np.empty(h0.shape[0])
-        if final_xy is not None and final_xy.shape != xy0.shape:
-            raise ValueError(f"final_xy must have shape {xy0.shape}, got {final_xy.shape}")
-        self._run(genomes, xy0, h0, layout, out, _NO_XY, _NO_HEADING, _NO_FINAL if final_xy is None else final_xy)
-        if not out.any():                                   # the check costs 2-7 us: only where it can matter
-            _warn_unless_finite(genomes[None], out[None])
-        return out
+        return self._one(genomes, ic, final_xy)[1]
 
     def evaluate(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> float:
-        """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`."""
-        return score(self.returns(genomes, ic, final_xy))
+        """Score F: the mean team return over the episodes of ``ic`` (SPEC section 5); see :meth:`returns`. With
+        ``ic`` from :meth:`prepare`, as fast as the compiled rollout (``benchmarks/api.py``)."""
+        return self._one(genomes, ic, final_xy)[0]
 
-    def evaluate_many(self, teams: np.ndarray, ic) -> np.ndarray:
-        """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic``, in one compiled call: each the
-        float :meth:`evaluate` gives (for an optimiser's population; a homogeneous team: :meth:`homogeneous`)."""
-        teams = np.ascontiguousarray(teams, dtype=np.float64)
+    def evaluate_many(self, teams: np.ndarray, ic, final_xy: np.ndarray | None = None,
+                      workers: int | None = None) -> np.ndarray:
+        """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic`` (or :meth:`prepare`'s), each the
+        float :meth:`evaluate` gives, bit for bit (for an optimiser's population; a homogeneous team:
+        :meth:`homogeneous`). Several teams share each pass of the compiled rollout (their episodes side by side in
+        its lanes), and a population of at least 2 teams per worker is split over ``workers`` threads (None: every
+        CPU this process may use; 1: this thread only). ``final_xy`` (B, E, N, 2), if given, receives each team's
+        final positions."""
+        teams = np.asarray(teams)
         if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
             raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
-        xy0, h0, layout = self._batch(*ic)
-        scores = np.empty(teams.shape[0])
-        args = (*self._in_dtype(teams, xy0, h0), self.kernel_for(layout), scores)
-        say_if_cold(self.compiled.evaluate_many, args, "the world's batched rollout")
-        self.compiled.evaluate_many(*args)
-        _warn_unless_finite(teams, scores)
-        return scores
+        p = self._prepared(ic)
+        b = teams.shape[0]
+        flat = genomes_in(teams, teams.shape, "teams").reshape(b * self.n_rovers, self.n_params)
+        if final_xy is not None:
+            if final_xy.shape != (b, *p.xy.shape) or final_xy.dtype != np.float64 or not final_xy.flags.c_contiguous:
+                raise ValueError(f"final_xy must be a C-ordered float64 array of shape {(b, *p.xy.shape)}")
+            final_xy = final_xy.reshape(b * p.episodes, self.n_rovers, 2)
+        return score_teams(self, flat, p, final_xy, workers)[0]
 
     def homogeneous(self, genome: np.ndarray) -> np.ndarray:
         """The team (N, P) of N copies of one rover's genome (P,) (the paper's homogeneous control)."""
@@ -295,25 +308,32 @@ class World(Starts, Scenario):
         conditions' xy (E, N, 2) and heading (E, N), checked and contiguous, then the world's
         :class:`~rovermarl.env.kernel.KernelWorld` with their layout, e.g. for a compiled loop that evaluates teams
         itself. Floats are in ``env.dtype`` (the genomes must be too)."""
-        xy0, h0, layout = self._batch(*ic)
-        return (*self._in_dtype(xy0, h0), self.kernel_for(layout))
+        p = self._prepared(ic)
+        return p.xy, p.heading, p.kernel
 
-    def _in_dtype(self, *arrays):
-        """Checked float64 arrays in ``env.dtype``, the kernel's precision, writeable (copied only when not: a read-only
-        array, such as one Ray delivers, would make numba compile the whole rollout a second time)."""
-        return tuple(np.require(a, self._float, ("C", "W")) for a in arrays)
+    def _prepared(self, ic) -> Prepared:
+        return ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
 
-    def _run(self, genomes, xy0, h0, layout, returns, traj_xy, traj_heading, final_xy=None):
-        args = (*self._in_dtype(genomes, xy0, h0), self.kernel_for(layout), returns, traj_xy, traj_heading,
-                _NO_FINAL if final_xy is None else final_xy)
-        say_if_cold(self.compiled.rollout, args, "the world's rollout")
-        self.compiled.rollout(*args)
+    def _one(self, genomes, ic, final_xy):
+        """(score, returns (E,)) of one team, the call's overhead cut to the bone (the genomes' check, one array, the
+        call; the warning only for a team not sane)."""
+        p = ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
+        g = genomes_in(genomes, self._team_shape, "genomes")
+        if final_xy is None:
+            final_xy = _NO_FINAL
+        elif final_xy.shape != p.xy.shape:
+            raise ValueError(f"final_xy must have shape {p.xy.shape}, got {final_xy.shape}")
+        returns = np.empty(p.heading.shape[0])
+        run = self.compiled.evaluate
+        if not run.overloads:
+            say_if_cold(run, (g, p.xy, p.heading, p.fields, returns, final_xy), "the world's rollout")
+        f, sane = run(g, p.xy, p.heading, p.fields, returns, final_xy)
+        if not sane:
+            warn_insane(np.zeros(1, dtype=bool), returns[None])
+        return f, returns
 
     def _team(self, genomes):
-        genomes = np.ascontiguousarray(genomes, dtype=np.float64)
-        if genomes.shape != (self.n_rovers, self.n_params):
-            raise ValueError(f"genomes must have shape ({self.n_rovers}, {self.n_params}), got {genomes.shape}")
-        return genomes
+        return genomes_in(genomes, self._team_shape, "genomes")
 
     def _batch(self, xy, heading, layout=None):
         """Checked, contiguous float64 (xy (..., N, 2), heading (..., N), layout (..., K)); no layout: K = 0 only."""
@@ -339,17 +359,6 @@ def score(returns: np.ndarray) -> float:
     """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead
     (:func:`kernel.score <rovermarl.env.kernel.score>`)."""
     return float(kernel.score(returns))
-
-
-def _warn_unless_finite(teams: np.ndarray, scores: np.ndarray) -> None:
-    """One warning when a team that scored 0 has genomes (B, N, P) that are not finite numbers of sane size
-    (|w| < 1e150: beyond that the MLP's sums overflow), which the rollout plays as rovers that stop and score 0.
-    Checked only where a score is 0 (B,): other scores are not such a team's, and the check stays off the hot path."""
-    zero = ~scores.reshape(scores.shape[0], -1).any(axis=1)
-    if zero.any() and not (np.abs(teams[zero]) < 1e150).all():
-        bad = int(np.flatnonzero(zero)[~(np.abs(teams[zero]) < 1e150).reshape(zero.sum(), -1).all(axis=1)][0])
-        warnings.warn(f"team {bad}'s genomes hold nan, inf or magnitudes >= 1e150: the rollout plays them as "
-                      "non-finite actions, which score 0", RuntimeWarning, stacklevel=3)
 
 
 OWN = (f"{__name__}.World", "rovermarl.env.World")          # env._target_ of rovermarl's own world

@@ -191,7 +191,7 @@ def _check_form(rec: RunRecord, template: dict, done: int) -> None:
 
 
 def _kind(value) -> type:
-    """The JSON kind of a plain value (a float subclass such as Evaluated is a float)."""
+    """The JSON kind of a plain value (a float subclass is a float)."""
     return next((t for t in (bool, int, float, str) if isinstance(value, t)), type(value))
 
 

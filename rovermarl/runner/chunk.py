@@ -104,10 +104,12 @@ class Evaluation(Evaluator):
     """The :class:`~rovermarl.algorithms.base.Evaluator` of a run in this process: teams scored on the run's initial
     conditions ``ic``, their final positions (E, N, 2) kept with ``keep_final`` (:attr:`final_xy` is the buffer they
     are written to). With ``fresh_seed`` (the run's seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and
-    :meth:`draw` moves to a generation's own set."""
+    :meth:`draw` moves to a generation's own set. The initial conditions are prepared once (``World.prepare``), so a
+    call checks only the genomes; :meth:`measure_many` scores a population in one ``World.evaluate_many`` call."""
 
     def __init__(self, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.world, self.ic, self.seed = world, ic, fresh_seed
+        self.prepared = world.prepare(ic)
         self.fresh = fresh_seed is not None
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
         self.calls = 0
@@ -117,15 +119,24 @@ class Evaluation(Evaluator):
         if not self.fresh:
             super().draw(generation)
         self.ic = self.world.run_ic(self.seed, generation)
+        self.prepared = self.world.prepare(self.ic)
 
     def score(self, genomes: np.ndarray) -> float:
         self.calls += 1
-        return self.world.evaluate(genomes, self.ic)
+        return self.world.evaluate(genomes, self.prepared)
 
     def measure(self, genomes: np.ndarray) -> Measured:
         self.calls += 1
-        score = self.world.evaluate(genomes, self.ic, self.final_xy)
+        score = self.world.evaluate(genomes, self.prepared, self.final_xy)
         return Measured(score, None if self.final_xy is None else self.final_xy.copy())
+
+    def measure_many(self, teams: np.ndarray) -> list[Measured]:
+        """What :meth:`measure` gives for each of B teams (B, N, P), bit for bit, from one ``World.evaluate_many``
+        call in this thread (a run's process already has its core)."""
+        self.calls += len(teams)
+        final = None if self.final_xy is None else np.empty((len(teams), *self.final_xy.shape))
+        scores = self.world.evaluate_many(teams, self.prepared, final, workers=1)
+        return [Measured(float(f), None if final is None else final[b]) for b, f in enumerate(scores)]
 
     def kernel_inputs(self) -> KernelInputs:
         """What a compiled generation loop needs to evaluate teams itself, as this does (it adds its evaluations to

@@ -251,15 +251,18 @@ def sense_rovers(x, y, sin_h, cos_h, n, row, sensor_range, obs, ranged=False):
 def act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite=False):
     """:func:`act` in the flat layout: genomes (N, G), obs (D*N*E,) feature-major -> a0, a1 (N*E,) rover-major.
     cand (N, D) int64: the input rows of each rover that may be nonzero (``checks.input_rows``; ``arange(D)`` when
-    unknown); hid ((H+2)*E,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (``checks.mlp_finite`` and
-    ``checks.in_range``), so the tanh may leave out its NaN case."""
-    p0 = hidden * n_ep
-    for i in range(genomes.shape[0]):
-        _mlp(genomes, i, obs, cand, n_ep, hidden, hid, rows, finite)
-        q0 = i * n_ep
-        for e in range(n_ep):                       # the outputs' sums, from the end of the scratch
+    unknown); hid ((H+2)*E / B,) and rows (D,) int64 are scratch. ``finite``: every sum is finite (``checks.mlp_finite``
+    and ``checks.in_range``), so the tanh may leave out its NaN case.
+    genomes (B*N, G) are B teams side by side: team b's rover i (row ``b*N + i``) acts in the E / B episodes from
+    ``i*E + b*E/B`` (the batched rollout's lanes; B = 1 is one team)."""
+    per = n_ep * cand.shape[0] // genomes.shape[0]  # episodes per team
+    p0 = hidden * per
+    for r in range(genomes.shape[0]):
+        _mlp(genomes, r, obs, cand, per, hidden, hid, rows, finite)
+        q0 = _lane0(r, cand.shape[0], genomes.shape[0], per)
+        for e in range(per):                        # the outputs' sums, from the end of the scratch
             a0[U(q0 + e)] = hid[U(p0 + e)]
-            a1[U(q0 + e)] = hid[U(p0 + n_ep + e)]
+            a1[U(q0 + e)] = hid[U(p0 + per + e)]
     # The output tanh over all rovers at once: the same values, and the long loops hide its latency (the act
     # stage took 57.4 instead of 65.6 ns per agent-step with E = 16 per rover).
     if finite:
@@ -268,6 +271,12 @@ def act_flat(genomes, obs, cand, n_ep, hidden, hid, rows, a0, a1, finite=False):
     else:
         _squash(a0, a0.shape[0], False)
         _squash(a1, a1.shape[0], False)
+
+
+@njit(inline="always", cache=True)
+def _lane0(r, n, rows, per):
+    """The first lane of genome row r (team ``r // n``'s rover ``r % n``) of ``rows`` rows, ``per`` episodes a team."""
+    return ((r % n) * (rows // n) + r // n) * per
 
 
 @njit(inline="always", **FAST)
@@ -292,9 +301,10 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 @njit(**FAST)
 def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
-    """MLP of rover i over its E episodes.
+    """MLP of genome row i over its E episodes.
 
-    genomes (N, G), obs (D*N*E,) feature-major (rover i's ``ep`` = E episodes at ``q0 = i*E`` .. ``q0+E-1``),
+    genomes (N, G), obs (D*N*E,) feature-major (rover i's ``ep`` = E episodes at ``q0 = i*E`` .. ``q0+E-1``; B teams
+    side by side, genomes (B*N, G): row i is team ``i // N``'s rover ``i % N``, its episodes from ``_lane0``),
     cand (N, D): each rover's input rows that may be nonzero, increasing, then -1 (``checks.input_rows``);
     hid ((H+2)*E,): the hidden units, then -> the two outputs' sums (before their tanh) in its last 2E entries
     (:func:`act_flat` takes them from there and applies the tanh); rows (D,) int scratch, ``finite`` as in
@@ -304,7 +314,8 @@ def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
     """
     g = genomes.shape[1]
     ne = ep * genomes.shape[0]
-    q0 = i * ep
+    q0 = _lane0(i, cand.shape[0], genomes.shape[0], ep)
+    rover = i % cand.shape[0]
     d = obs.shape[0] // ne
     o_b1 = d * hidden
     o_w2 = o_b1 + hidden
@@ -314,7 +325,7 @@ def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
     # up to the sign of a zero h). cand leaves out those that always are (own rover slot, POI types of 0).
     nr, zero = 0, like(genomes[0, 0], 0.0)
     for c in range(d):
-        k = cand[U(i), U(c)]
+        k = cand[U(rover), U(c)]
         if k < 0:
             break
         ok = U(k * ne + q0)

@@ -1,0 +1,84 @@
+"""World.evaluate_many lays several teams' episodes side by side in one rollout's lanes and splits a population over
+threads: each score and each team's final positions are the bits World.evaluate gives, in float64 and float32, in
+the paper's world and the plug-in examples. World.prepare checks the initial conditions once; a prepared set is a
+snapshot, and another world prepares it again."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import rovermarl.env.prepared as prepared
+from rovermarl.env import make_world
+from tests.test_world_plugins import _world
+
+
+def _make(name: str, dtype: str):
+    return make_world("duo", dtype=dtype) if name == "paper" else _world(name, dtype=dtype)
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+@pytest.mark.parametrize("name", ["paper", "obstacles", "random_pois"])
+def test_evaluate_many_is_a_loop_of_evaluate_bit_for_bit(name, dtype, monkeypatch):
+    world = _make(name, dtype)
+    teams = np.random.default_rng(7).uniform(-2, 2, (21, world.n_rovers, world.n_params))
+    teams[5] = world.homogeneous(teams[5, 1])
+    ic = world.run_ic(3)
+    e = ic[1].shape[0]
+    final_one = np.empty((21, e, world.n_rovers, 2))
+    one = [world.evaluate(t, ic, final_one[b]) for b, t in enumerate(teams)]
+    if name == "paper":
+        assert 0 < sum(s > 0 for s in one) < 21                     # scoring and zero-scoring teams both
+    p = world.prepare(ic)
+    for lanes, workers in ((64, 1), (64, 2), (64, 3), (16, 1), (e * 21, 1), (e * 5, 2)):
+        monkeypatch.setattr(prepared, "PASS_LANES", lanes)           # 1, 4, 5 or all 21 teams in one pass
+        final = np.full_like(final_one, np.nan)
+        many = world.evaluate_many(teams, p, final, workers=workers)
+        assert many.tolist() == one, (lanes, workers)
+        assert final.tobytes() == final_one.tobytes(), (lanes, workers)
+    assert world.evaluate_many(teams[:0], p).shape == (0,)
+
+
+def test_prepare_checks_once_and_is_a_snapshot():
+    world = make_world("duo")
+    ic = world.run_ic(4)
+    team = np.random.default_rng(1).uniform(-2, 2, (world.n_rovers, world.n_params))
+    want, want_returns, want_xy = world.evaluate(team, ic), world.returns(team, ic), world.rollout(team, ic).xy
+    p = world.prepare(ic)
+    assert world.prepare(p) is p
+    assert world.evaluate(team, p) == want and world.returns(team, p).tobytes() == want_returns.tobytes()
+    assert world.rollout(team, p).xy.tobytes() == want_xy.tobytes()
+    assert all(a is b for a, b in zip(world.kernel_args(p), (p.xy, p.heading, p.kernel), strict=True))
+    ic.xy[:] += 1.0                                                  # the prepared set does not follow
+    assert world.rollout(team, p).xy.tobytes() == want_xy.tobytes()
+    assert world.rollout(team, ic).xy[:, 0].tolist() == ic.xy.tolist()
+    other = make_world("duo", dtype="float32")                      # another world prepares it again, in float32
+    q = other.prepare(p)
+    assert q is not p and q.xy.dtype == np.float32 and other.evaluate(team, p) == other.evaluate(team, p.ic)
+    with pytest.raises(ValueError, match=r"genomes must have shape \(4, 658\)"):
+        world.evaluate(team[:, 1:], p)
+    with pytest.raises(ValueError, match="expected xy"):
+        world.prepare((ic.xy[:, :3], ic.heading))
+    with pytest.raises(ValueError, match="final_xy must"):
+        world.evaluate_many(team[None], p, np.empty((1, 16, 4, 3)))
+
+
+@pytest.mark.parametrize("dtype", ["float64", "float32"])
+def test_a_team_that_is_not_finite_is_warned_about_by_each_call(dtype):
+    """The check runs in the kernel (it reads every weight anyway): every path warns of such a team, once."""
+    world = make_world("solo", dtype=dtype)
+    p = world.prepare(world.run_ic(0))
+    bad = np.zeros((4, world.n_params))
+    bad[1, 7] = np.nan
+    for call in (lambda: world.evaluate(bad, p), lambda: world.returns(bad, p)):
+        with pytest.warns(RuntimeWarning, match="team 0's genomes hold nan") as record:
+            call()
+        assert len(record) == 1
+    teams = np.zeros((9, 4, world.n_params))
+    teams[6] = bad
+    with pytest.warns(RuntimeWarning, match="team 6's") as record:
+        assert world.evaluate_many(teams, p, workers=2).tolist() == [0.0] * 9
+    assert len(record) == 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        world.evaluate_many(teams[:6], p, workers=2)                 # finite teams: no warning
