@@ -3,7 +3,7 @@ criteria are applied exactly as issue 43 wrote them (each bound checked on synth
 
 import json
 
-from rovermarl.analysis.radius import CRITERIA, RADII, block, passing, report
+from rovermarl.analysis.radius import CRITERIA, RADII, block, passing, report, verdicts
 from tests.conftest import ROOT
 
 DOC = (ROOT / "docs" / "REPRODUCTION.md").read_text()
@@ -54,3 +54,21 @@ def test_an_unfinished_radius_has_no_verdict(tmp_path):
 
 def test_the_launcher_runs_the_registered_radii():
     assert f'RADII="${{RADII:-{" ".join(RADII)}}}"' in (ROOT / "launchers" / "radius.sh").read_text()
+
+
+def test_the_reading_follows_the_criteria():
+    """Each count the reading after the section quotes is the committed study's, and "no radius passes" holds."""
+    results = ROOT / "results" / "radius"
+    reading = DOC.split("<!-- radius:end -->")[1].split("\n## ")[0]
+    assert passing(results) == ([], [])
+    assert "No radius passes" in reading
+    v = {r: [(ok, counts) for _, counts, ok in rows] for r, rows in verdicts(results).items()}
+    holds = {c: [r for r in RADII if v[r][c - 1][0]] for c in (1, 2, 3, 4)}     # criterion -> radii where it holds
+    assert holds == {1: ["3.5", "4"], 2: ["4"], 3: list(RADII), 4: []}
+    assert v["3.5"][0][1] == {("duo", "k=1"): 12, ("duo", "k=2"): 11}
+    assert sum(v["4"][1][1].values()) == 3
+    assert [v[r][3][1][("solo", "homogeneous")] for r in RADII] == [4, 4, 9, 15]
+    assert v["4"][3][1][("solo", "k=4")] == 16
+    for quoted in ("k=1 12 of 16 and k=2 11 of 16", "3 runs\nat 6", "4 of 16 runs reach 4 at\n2.5 and at 3",
+                   "homogeneous 15 of 16, k=4 16 of 16"):
+        assert quoted in reading, quoted
