@@ -76,7 +76,8 @@ def with_modes(rollout, args):
     genomes, xy0, h0, poi_xy, poi_type, coupling, value, steps, hidden, *floats = args
     d = 3 * poi_xy.shape[0] + 2 * genomes.shape[0]
     return (genomes, xy0, h0, kernel.KernelWorld(poi_xy, poi_type, coupling, value, steps, hidden, d, *floats, 0, 0,
-                                                 np.empty((h0.shape[0], 0)), ()))
+                                                 np.empty((h0.shape[0], 0)), (), input_rows(genomes.shape[0],
+                                                 poi_type), np.empty(0, np.int64)))
 
 
 def run_kernel(rollout, args, record: bool):

@@ -82,11 +82,13 @@ class VectorEnv:
         self.xy, self.heading = np.array(xy), np.array(heading)     # (B, N, 2), (B, N): stepped in place
         self.layout = np.asarray(ic[2], np.float64) if len(ic) > 2 else np.empty((b, 0))   # (B, K)
         self._acc = self._compiled.env_start(self._k, b)
+        self._s = self._compiled.state_of(self.xy, self._k)        # the world's state (World.state): this env's own
         self.value = np.zeros(b)                                     # (B,): each episode's return so far
         self.t, self.over = 0, False
         obs = np.empty((b, self.n_agents, w.obs_dim), self.dtype)
-        say_if_cold(self._compiled.observe, (self.xy, self.heading, self._k, obs), "the environment's functions")
-        self._compiled.observe(self.xy, self.heading, self._k, obs)
+        say_if_cold(self._compiled.observe, (self.xy, self.heading, self._k, self._s, obs),
+                    "the environment's functions")
+        self._compiled.observe(self.xy, self.heading, self._k, self._s, obs)
         return self._with_time(obs), {"step": 0}
 
     def step(self, actions: np.ndarray):
@@ -104,7 +106,7 @@ class VectorEnv:
         w, b, n = self.world, self.num_envs, self.n_agents
         before = self.value.copy()
         obs = np.empty((b, n, w.obs_dim), self.dtype)
-        args = (self.xy, self.heading, a, self._k, self._acc, self.value, obs)
+        args = (self.xy, self.heading, a, self._k, self._s, self._acc, self.value, obs)
         say_if_cold(self._compiled.env_step, args, "the environment's functions")
         self._compiled.env_step(*args)
         self.t += 1

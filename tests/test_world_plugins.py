@@ -99,10 +99,11 @@ def test_a_plugins_rollout_is_compiled_and_equals_its_env_step_by_step(name):
     xy, heading = ic.xy.copy(), ic.heading.copy()
     k = world.kernel_for(ic.layout)
     obs, act = np.empty((5, world.n_rovers, world.obs_dim)), np.empty((5, world.n_rovers, 2))
+    s = world.compiled.state_of(xy, k)                                     # the world's state (World.state)
     for t in range(world.steps):                                           # the env's functions, one step at a time
-        world.compiled.observe(xy, heading, k, obs)
+        world.compiled.observe(xy, heading, k, s, obs)
         kernel.act(team, obs, world.hidden, act)
-        world.compiled.step(xy, heading, act, k)
+        world.compiled.step(xy, heading, act, k, s)
         np.testing.assert_allclose(xy, roll.xy[:, t + 1], atol=1e-9)
     env = RoverParallelEnv(world)
     observations, _ = env.reset(seed=9)

@@ -12,8 +12,8 @@ Run it from the repository root (``python -m`` puts the current directory on the
 ======================== ==============================================================================
 Parameters (``env.*``)   the paper's world's, and ``obstacles``: a list of ``[x, y, radius]``
 Observation              3P + 2N + 2M numbers (M obstacles): 46 for the paper's 10 POIs, 4 rovers, 4 discs
-Hooks                    ``sense`` (the paper's sensors, then the obstacle block), ``move`` (then slide out),
-                         ``rows`` (the obstacle rows are read); the reward is the paper's
+Hooks                    ``sense`` (the paper's sensors, then the obstacle block: the policy reads it, as
+                         ``obs_blocks`` declares it), ``move`` (then slide out); the reward is the paper's
 ======================== ==============================================================================
 """
 
@@ -26,7 +26,6 @@ import numpy as np
 
 from rovermarl import errors
 from rovermarl.env import World
-from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.hooks import Hooks
 from rovermarl.env.kernel.math import FAST, like
 from rovermarl.env.kernel.rules import bearing, reading
@@ -35,7 +34,7 @@ from rovermarl.jit import njit
 
 
 @njit(inline="always", **FAST)
-def sense(x, y, sin_h, cos_h, n, w, obs):
+def sense(x, y, sin_h, cos_h, n, w, s, obs):
     """The paper's sensors (rows 0..3P+2N-1), then 2 rows per obstacle."""
     ranged = sense_flat(x, y, sin_h, cos_h, n, w.poi_xy, w.poi_type, w.sensor_range, obs)
     discs = w.extra[0]
@@ -54,7 +53,7 @@ def sense(x, y, sin_h, cos_h, n, w, obs):
 
 
 @njit(inline="always", **FAST)
-def move(x, y, heading, sin_h, cos_h, a0, a1, w):
+def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
     """The paper's motion, then each rover inside a disc slides out to its edge (discs should not overlap)."""
     move_flat(x, y, heading, sin_h, cos_h, a0, a1, w.v_max, w.w_max, w.speed_mode)
     discs = w.extra[0]
@@ -71,23 +70,6 @@ def move(x, y, heading, sin_h, cos_h, a0, a1, w):
                 y[q] = discs[m, 1] + dy * (r / d)
 
 
-@njit(cache=True)
-def rows(n, w):
-    """The paper's rows that may be nonzero (``checks.input_rows``), then every obstacle row."""
-    base = input_rows(n, w.poi_type)
-    out = np.full((n, w.obs_dim), -1, dtype=np.int64)
-    for i in range(n):
-        c = 0
-        for k in range(base.shape[1]):
-            if base[i, k] >= 0:
-                out[i, c] = base[i, k]
-                c += 1
-        for k in range(base.shape[1], w.obs_dim):
-            out[i, c] = k
-            c += 1
-    return out
-
-
 @dataclass(frozen=True, eq=False)
 class Obstacles(World):
     """The paper's world with circular obstacles (``obstacles``: ``[x, y, radius]`` each).
@@ -99,7 +81,7 @@ class Obstacles(World):
     """
 
     obstacles: tuple = ((6.5, 0.0, 1.5), (0.0, 6.5, 1.5), (-6.5, 0.0, 1.5), (0.0, -6.5, 1.5))
-    hooks = Hooks(sense=sense, move=move, rows=rows)       # the paper's reward and checks
+    hooks = Hooks(sense=sense, move=move)                  # the paper's reward and checks
 
     def check(self) -> None:
         discs = self.obstacles

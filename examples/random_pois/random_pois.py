@@ -21,66 +21,28 @@ Not measured             occupancy and C8 switches (they read fixed POIs: ``fixe
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from rovermarl import errors
 from rovermarl.env import World
+from rovermarl.env.kernel.episode_pois import final_only, no_acc, no_step, reward_at, sense_at
 from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.math import FAST, like
-from rovermarl.env.kernel.reward import payout
-from rovermarl.env.kernel.rules import bearing, reading, within
-from rovermarl.env.kernel.stages import sense_rovers
+from rovermarl.env.kernel.math import FAST
 from rovermarl.jit import njit
 
 
 @njit(inline="always", **FAST)
-def sense(x, y, sin_h, cos_h, n, w, obs):
+def sense(x, y, sin_h, cos_h, n, w, s, obs):
     """The paper's sensors, each POI where the episode's layout puts it (pair ``q = i*E + e`` is episode ``e``)."""
-    ne = x.shape[0]
-    ep = ne // n
-    inv_pi = like(w.sensor_range, 1.0 / math.pi)
-    for j in range(w.poi_xy.shape[0]):
-        o = 3 * j * ne
-        for q in range(ne):
-            e = q % ep
-            dx = like(x[q], w.layout[e, 2 * j]) - x[q]
-            dy = like(x[q], w.layout[e, 2 * j + 1]) - y[q]
-            d = math.sqrt(dx * dx + dy * dy)
-            b = bearing(dx, dy, cos_h[q], sin_h[q], False)
-            obs[o + q], obs[o + ne + q], obs[o + 2 * ne + q] = reading(
-                d, w.sensor_range, d / w.sensor_range, b * inv_pi, w.poi_type[j])
-    sense_rovers(x, y, sin_h, cos_h, n, 3 * w.poi_xy.shape[0], w.sensor_range, obs)
-    return False                                       # not the ranged bearings: the MLP keeps its general tanh
+    return sense_at(x, y, sin_h, cos_h, n, w.layout, w.poi_type, w.sensor_range, obs)
 
 
 @njit(inline="always", cache=True)
-def stepwise(w):
-    return False                                       # the final positions only
-
-
-@njit(inline="always", cache=True)
-def score_start(w, n_ep):
-    return (np.empty(0),)                              # the final positions are all the reward reads
-
-
-@njit(inline="always", cache=True)
-def score_step(w, x, y, xy, acc):
-    pass
-
-
-@njit(inline="always", cache=True)
-def score_end(w, xy, acc, returns):
-    """The paper's reward rule (``within``, ``payout``) on the episode's POIs: xy (E, N, 2) after the last step."""
-    count = np.zeros((xy.shape[0], w.coupling.shape[0]), np.int64)
-    for e in range(xy.shape[0]):
-        for j in range(w.coupling.shape[0]):
-            for i in range(xy.shape[1]):
-                count[e, j] += within(w.layout[e, 2 * j], w.layout[e, 2 * j + 1], xy[e, i, 0], xy[e, i, 1],
-                                      w.obs_radius)
-    payout(count, w.coupling, w.value, returns)
+def score_end(w, xy, acc, returns, s):
+    """The paper's reward rule on the episode's POIs: xy (E, N, 2) after the last step."""
+    reward_at(xy, w.layout, w.coupling, w.value, w.obs_radius, returns)
 
 
 @dataclass(frozen=True, eq=False)
@@ -95,7 +57,7 @@ class RandomPois(World):
 
     ring_inner: float = 8.0
     ring_outer: float = 14.0
-    hooks = Hooks(sense=sense, stepwise=stepwise, score_start=score_start, score_step=score_step,
+    hooks = Hooks(sense=sense, stepwise=final_only, score_start=no_acc, score_step=no_step,
                   score_end=score_end)                   # the paper's motion and checks
     fixed_pois = False
 

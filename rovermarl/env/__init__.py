@@ -3,7 +3,8 @@
 tests' oracle)."""
 
 from rovermarl.env.make import make_world
+from rovermarl.env.scenario import State
 from rovermarl.env.starts import InitialConditions
 from rovermarl.env.world import Rollout, World
 
-__all__ = ["InitialConditions", "Rollout", "World", "make_world"]
+__all__ = ["InitialConditions", "Rollout", "State", "World", "make_world"]

@@ -9,7 +9,25 @@ compiled hooks (:mod:`rovermarl.env.kernel.hooks`); each method below may be cal
 
 from __future__ import annotations
 
+from typing import ClassVar, NamedTuple
+
 import numpy as np
+
+from rovermarl import errors
+from rovermarl.env.kernel.checks import input_rows
+
+PER = ("rover", "episode")
+
+
+class State(NamedTuple):
+    """One array of a world's per-episode state (``World.state``): ``per`` "rover" gives it shape (N*E, width) (row
+    ``q = i*E + e``), "episode" (E, width); ``width`` an integer or the name of a World attribute (``"n_pois"``);
+    ``dtype`` "float" (the kernel's precision, ``env.dtype``), "float64", "float32", "int64" or "bool"."""
+
+    name: str
+    per: str
+    width: int | str = 1
+    dtype: str = "float"
 
 
 class Scenario:
@@ -19,6 +37,7 @@ class Scenario:
     layout_dim = 0      # K: numbers per episode that draw_layout adds to the initial conditions
     fixed_pois = True   # the POIs are World.poi_xy in every episode: the occupancy and C8 measures read them
                         # (the behaviour observer leaves those measures out of a world that sets False)
+    state: ClassVar[tuple[State, ...]] = ()   # the per-episode state the hooks read and write (none: the paper's)
 
     def check(self) -> None:
         """Check the plug-in's own fields (raise ``errors.ConfigError``: one line naming key, value and what is
@@ -51,6 +70,42 @@ class Scenario:
         kinds = float(np.abs(self.poi_sensor_type).max(initial=1.0))
         poi_high = np.tile([1.0, 1.0, kinds], self.n_pois)
         return [("poi", -poi_high, poi_high), ("rover", -np.ones(2 * self.n_rovers), np.ones(2 * self.n_rovers))]
+
+    def input_rows(self) -> np.ndarray:
+        """(N, D) int64: each rover's observation rows that may be nonzero, increasing, then -1 (what the MLP reads,
+        ``KernelWorld.rows``). From :meth:`obs_blocks`: of the paper's blocks (first, ``poi`` and ``rover``) those
+        ``checks.input_rows`` keeps, then every row of the plug-in's own blocks. A plug-in whose ``sense`` fills the
+        paper's rows otherwise overrides this (reading a row of zeros costs time, never a result).
+
+        >>> from rovermarl.env import make_world
+        >>> make_world("solo").input_rows()[0, :4].tolist()        # POI 0's type row (type 0) is left out
+        [0, 1, 3, 4]
+        """
+        blocks = self.obs_blocks()
+        n, d = self.n_rovers, sum(low.size for _, low, _ in blocks)
+        paper = [("poi", 3 * self.n_pois), ("rover", 2 * self.n_rovers)]
+        out = np.full((n, d), -1, dtype=np.int64)
+        if [(name, low.size) for name, low, _ in blocks[:2]] != paper:
+            out[:] = np.arange(d)
+            return out
+        base, k0 = input_rows(n, self._type), sum(size for _, size in paper)
+        for i in range(n):
+            mine = np.concatenate([base[i][base[i] >= 0], np.arange(k0, d)])
+            out[i, :mine.size] = mine
+        return out
+
+    def state_dims(self) -> np.ndarray:
+        """(S,) int64: the width of each array of :attr:`state`, checked (one line naming the entry)."""
+        dims = []
+        for k, entry in enumerate(self.state):
+            where = f"{type(self).__name__}.state[{k}] ({getattr(entry, 'name', entry)!r})"
+            if not isinstance(entry, State):
+                raise errors.ConfigError(where, entry, "must be a rovermarl.env.State(name, per, width, dtype)")
+            errors.choice(f"{where}.per", entry.per, PER)
+            errors.choice(f"{where}.dtype", entry.dtype, ("float", "float64", "float32", "int64", "bool"))
+            width = getattr(self, entry.width) if isinstance(entry.width, str) else entry.width
+            dims.append(errors.integer(f"{where}.width", width, 0))
+        return np.array(dims, dtype=np.int64)
 
     def poi_positions(self, layout: np.ndarray | None = None) -> np.ndarray:
         """(P, 2): the POIs of an episode whose layout is ``layout`` (K,); the paper's: fixed, ``poi_xy``."""

@@ -121,13 +121,30 @@ class World(Starts, Scenario):
             self.poi_xy.astype(f), self._type.astype(f), self._coupling, self._value, self.steps, self.hidden,
             self.obs_dim, f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
             kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward), np.empty((0, self.layout_dim)),
-            self.kernel_extra()))
+            self.kernel_extra(), self.input_rows(), self.state_dims()))
+        if self.hooks != ROVERS or self.state:
+            self.check_sense()
 
     @cached_property
     def compiled(self):
         """The module of the world's compiled functions (``rollout``, ``observe``, ``step``, ``returns_of``):
         :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
-        return kernel_module(self.hooks)
+        return kernel_module(self.hooks, tuple(self.state))
+
+    def check_sense(self) -> None:
+        """Run the hook ``sense`` once (seed 0's first start) and check that it fills exactly the rows that
+        :meth:`obs_blocks` declares; else one line saying both."""
+        p = self.prepare(self.initial_conditions(seed=0, n=1))
+        extra = 8
+        filled = self.compiled.sensed_rows(p.xy, p.heading, p.kernel, self.compiled.state_of(p.xy, p.kernel), extra)
+        d = self.obs_dim
+        if not filled[:d].all() or filled[d:].any():
+            wrote = int(np.flatnonzero(filled).max(initial=-1)) + 1
+            blocks = ", ".join(f"{name} {low.size}" for name, low, _ in self.obs_blocks())
+            raise errors.ConfigError(f"{type(self).__name__}.sense", wrote, f"rows filled, but obs_blocks declares "
+                                     f"{d} ({blocks}): sense must fill each of them and no more"
+                                     + ("" if filled[d:].any() or not filled[:d].any() else
+                                        f"; rows left unfilled: {np.flatnonzero(~filled[:d]).tolist()[:8]}"))
 
     def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:
         """:attr:`kernel` with the initial conditions' ``layout`` (E, K) (a world without one: :attr:`kernel`)."""
@@ -194,7 +211,8 @@ class World(Starts, Scenario):
     def observe(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
         """Observations: xy (..., N, 2), heading (..., N) (and a plug-in's layout (..., K)) -> (..., N, obs_dim),
         float64. The paper's world reads them with libm's rounding (``kernel.sense_libm``; the rollout's sensing reads
-        the same within a few ulp); a plug-in's through its ``sense`` hook."""
+        the same within a few ulp); a plug-in's through its ``sense`` hook, with its state as the episode starts
+        (hook ``begin``)."""
         xy, heading, layout = self._batch(xy, heading, layout)
         out = np.empty(heading.shape + (self.obs_dim,))
         flat = xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers)
@@ -204,7 +222,8 @@ class World(Starts, Scenario):
         else:
             k = self.kernel._replace(poi_xy=self.poi_xy, poi_type=self._type, sensor_range=float(self.sensor_range),
                                      layout=layout.reshape(flat[1].shape[0], self.layout_dim))
-            self.compiled.observe(*flat, k, out.reshape(-1, self.n_rovers, self.obs_dim))
+            self.compiled.observe(*flat, k, self.compiled.state_of(flat[0], k),
+                                  out.reshape(-1, self.n_rovers, self.obs_dim))
         return out
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:

@@ -20,8 +20,9 @@ recompiles its callers on the next run; no ``__pycache__`` needs deleting.
 """
 
 from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)
-from rovermarl.env.kernel.fused import KernelWorld, rollout
+from rovermarl.env.kernel.fused import rollout
 from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
+from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import (
                                          fold,
                                          max_return,

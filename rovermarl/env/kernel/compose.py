@@ -2,10 +2,14 @@
 
 numba compiles a call to another compiled function into its caller, and caches the result only if that function
 is a global of the caller's module (a function passed as an argument is recompiled in every process). So a world
-whose hooks are not the rover world's gets a module of its own: the source of ``fused.py`` with its ``# hooks`` line
-importing the plug-in's functions instead, written beside numba's cache (``NUMBA_CACHE_DIR``, else the plug-in's
-``__pycache__``) and imported from there. Its first line carries a hash of the plug-in's directory and of the hooks'
-names, so an edit of the plug-in rewrites it and numba recompiles (:mod:`rovermarl.jit` stamps the rest).
+whose hooks or state are not the rover world's gets a module of its own: the source of ``fused.py`` with its
+``# hooks`` import importing the plug-in's functions instead, and a ``state_new`` written from the world's declared
+state (``World.state``), written beside numba's cache (``NUMBA_CACHE_DIR``, else a per-user cache dir: never into
+rovermarl's package) and imported from there. Its first line carries a hash of the source of every module that
+provides a hook (and of the modules of their packages that are loaded, and of the files beside them), so an edit
+of any hook rewrites it and numba recompiles (:mod:`rovermarl.jit` stamps the rest). The record it reads,
+:class:`~rovermarl.env.kernel.record.KernelWorld`, is one class for every copy: numba's cache index pickles it by
+name, so one plug-in may be imported under two module paths on one cache.
 """
 
 from __future__ import annotations
@@ -13,24 +17,38 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib.util
-import inspect
 import os
 import sys
 from pathlib import Path
 
 from rovermarl.env.kernel import fused
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
-from rovermarl.jit import sources_stamp
+from rovermarl.jit import PACKAGE
 
-MARK = "  # hooks\n"
+MARK = "(  # hooks\n"
+STATE_DTYPES = {"float": "w.poi_xy.dtype", "float64": "np.float64", "float32": "np.float32", "int64": "np.int64",
+                "bool": "np.bool_"}     # "float": the kernel's precision (env.dtype)
 
 
-def kernel_module(hooks: Hooks):
-    """The module whose ``rollout``, ``observe``, ``step`` and ``returns_of`` run a world with ``hooks``:
-    :mod:`~rovermarl.env.kernel.fused` itself for the rover world's, else a compiled copy (:func:`_generated`)."""
-    if hooks == ROVERS:
+def kernel_module(hooks: Hooks, state: tuple = ()):
+    """The module whose ``rollout``, ``observe``, ``step`` and ``returns_of`` run a world with ``hooks`` and the
+    declared ``state`` (``World.state``): :mod:`~rovermarl.env.kernel.fused` itself for the rover world's, else a
+    compiled copy (:func:`_generated`)."""
+    if hooks == ROVERS and not state:
         return fused
-    return _generated(tuple(_import_path(name, fn) for name, fn in zip(Hooks._fields, hooks, strict=True)))
+    paths = tuple(_import_path(name, fn) for name, fn in zip(Hooks._fields, hooks, strict=True))
+    return _generated(paths, state_source(state))
+
+
+def state_source(state: tuple) -> str:
+    """The source of ``state_new(w, n, n_ep)`` for a declared state: one array per entry, (N*E, width) per rover or
+    (E, width) per episode, its width ``w.state_dims[k]``."""
+    arrays = []
+    for k, entry in enumerate(state):
+        rows = "n * n_ep" if entry.per == "rover" else "n_ep"
+        arrays.append(f"np.empty(({rows}, w.state_dims[{k}]), dtype={STATE_DTYPES[entry.dtype]})")
+    body = "(" + ", ".join(arrays) + ("," if len(arrays) == 1 else "") + ")"
+    return f'\n\n@njit(inline="always", cache=True)\ndef state_new(w, n, n_ep):\n    return {body}\n'
 
 
 def _import_path(name: str, fn) -> tuple[str, str, str]:
@@ -44,18 +62,47 @@ def _import_path(name: str, fn) -> tuple[str, str, str]:
     return name, module, attr
 
 
+def hook_sources(modules) -> str:
+    """A hash of the source of every plug-in module in ``modules`` (rovermarl's own are stamped by
+    :mod:`rovermarl.jit`), of the loaded modules of their top-level packages, and of the ``.py`` files beside them."""
+    files = set()
+    for module in modules:
+        if module == "rovermarl" or module.startswith("rovermarl."):
+            continue
+        root = module.split(".")[0]
+        for name, mod in list(sys.modules.items()):
+            path = getattr(mod, "__file__", None)
+            if path and (name == root or name.startswith(root + ".")):
+                files.add(Path(path).resolve())
+        path = Path(sys.modules[module].__file__).resolve()
+        files.update(path.parent.glob("*.py"))
+    h = hashlib.sha256()
+    for path in sorted(files):
+        if path.suffix == ".py" and path.is_file():
+            h.update(str(path).encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+    return h.hexdigest()
+
+
+def cache_root() -> Path:
+    """Where generated modules go: ``NUMBA_CACHE_DIR``, else ``$XDG_CACHE_HOME/rovermarl`` (``~/.cache/rovermarl``)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return Path(os.environ["NUMBA_CACHE_DIR"])
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rovermarl"
+
+
 @functools.cache
-def _generated(paths: tuple[tuple[str, str, str], ...]):
+def _generated(paths: tuple[tuple[str, str, str], ...], state: str):
     imports = "".join(f"from {module} import {attr} as {name}\n" for name, module, attr in paths)
-    plugin = Path(inspect.getfile(sys.modules[paths[0][1]])).resolve()
-    stamp = hashlib.sha256((imports + sources_stamp(str(plugin))).encode()).hexdigest()[:16]
+    stamp = hashlib.sha256((imports + state + hook_sources({m for _, m, _ in paths})).encode()).hexdigest()[:16]
     source = Path(fused.__file__).read_text()
     head, rest = source.split(MARK, 1)
+    rest = rest.split("\n)\n", 1)[1]                                 # the rest of the hooks' import
     text = (f"# generated by rovermarl.env.kernel.compose from {fused.__file__}; stamp {stamp}\n"
-            + head[:head.rindex("\n") + 1] + imports + rest)
-    name = f"rovermarl_world_{hashlib.sha256(imports.encode()).hexdigest()[:12]}"
-    root = Path(os.environ["NUMBA_CACHE_DIR"]) if os.environ.get("NUMBA_CACHE_DIR") else plugin.parent / "__pycache__"
-    path = root / "rovermarl_worlds" / f"{name}.py"
+            + head[:head.rindex("\n") + 1] + imports + rest + state)
+    name = f"rovermarl_world_{hashlib.sha256((imports + state).encode()).hexdigest()[:12]}"
+    path = cache_root() / "rovermarl_worlds" / f"{name}.py"
+    if path.resolve().is_relative_to(PACKAGE):
+        raise RuntimeError(f"NUMBA_CACHE_DIR={os.environ.get('NUMBA_CACHE_DIR')} is inside rovermarl's package")
     if not path.exists() or path.read_text() != text:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_name(f".{path.name}.{os.getpid()}")

@@ -8,44 +8,26 @@ compiles a copy of it with the plug-in's hooks in place of the line marked ``# h
 
 from __future__ import annotations
 
-from typing import NamedTuple
-
 import numpy as np
 
-from rovermarl.env.kernel.hooks import finite, move, rows, score_end, score_start, score_step, sense, stepwise  # hooks
+from rovermarl.env.kernel.hooks import (  # hooks
+    begin,
+    finite,
+    move,
+    score_end,
+    score_start,
+    score_step,
+    sense,
+    state_new,
+    stepwise,
+    tick,
+)
 from rovermarl.env.kernel.lanes import in_precision, sane_teams, tile_flat, tile_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
+from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import score
 from rovermarl.env.kernel.stages import act_flat, flat_pose, flat_state, from_flat, pose_back, to_flat
 from rovermarl.jit import njit
-
-
-class KernelWorld(NamedTuple):
-    """The world as the kernel reads it, owned by :class:`~rovermarl.env.World` (``World.kernel``) and passed whole.
-
-    poi_xy (P, 2) and poi_type (P,) (the sensors' third number) in the kernel's precision (``env.dtype``); coupling
-    (P,) int64; value (P,) float64; ``steps`` T, ``hidden`` H and ``obs_dim`` D; sensor_range, obs_radius, v_max and
-    w_max (radians) in the kernel's precision; ``speed_mode`` and ``reward_mode`` the indices of ``env.speed`` and
-    ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`; ``layout`` (E, K) float64, what the initial conditions
-    draw per episode besides the rovers' starts (K = 0 for the paper's world; ``World.kernel_for`` sets it per call);
-    ``extra``, a tuple of a world plug-in's own arrays and numbers (``World.kernel_extra``; empty here).
-    """
-
-    poi_xy: np.ndarray
-    poi_type: np.ndarray
-    coupling: np.ndarray
-    value: np.ndarray
-    steps: int
-    hidden: int
-    obs_dim: int
-    sensor_range: float
-    obs_radius: float
-    v_max: float
-    w_max: float
-    speed_mode: int
-    reward_mode: int
-    layout: np.ndarray
-    extra: tuple
 
 
 @njit(**FAST)
@@ -66,12 +48,13 @@ def rollout(genomes, xy0, heading0, w, returns, traj_xy, traj_heading, final_xy)
     """
     _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, w.poi_xy, w.poi_type, w.coupling,
              w.value, w.steps, w.hidden, w.obs_dim, w.sensor_range, w.obs_radius, w.v_max, w.w_max, w.speed_mode,
-             w.reward_mode, w.layout, w.extra)
+             w.reward_mode, w.layout, w.extra, w.rows, w.state_dims)
 
 
 @njit(**FAST)
 def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, poi_xy, poi_type, coupling, value,
-             steps, hidden, obs_dim, sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, layout, extra):
+             steps, hidden, obs_dim, sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, layout, extra,
+             rows, state_dims):
     """:func:`rollout` with the record's fields as arguments of their own, rebuilt into ``w`` here: compiled so, the
     loop runs 5-10% faster than on a record argument (measured side by side: LLVM then sees plain arrays)."""
     per, n = heading0.shape
@@ -80,7 +63,7 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     if teams > 1 and layout.shape[0] == per:           # a plug-in's layout, one row per lane
         layout = tile_rows(layout, teams)
     w = KernelWorld(poi_xy, poi_type, coupling, value, steps, hidden, obs_dim, sensor_range, obs_radius, v_max, w_max,
-                    speed_mode, reward_mode, layout, extra)
+                    speed_mode, reward_mode, layout, extra, rows, state_dims)
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
     d, hidden = w.obs_dim, w.hidden
@@ -88,7 +71,7 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
     obs = np.empty(d * ne, dtype=xy0.dtype)
     hid = np.empty((hidden + 2) * per, dtype=xy0.dtype)
-    scratch, cand = np.empty(d, dtype=np.int64), rows(n, w)
+    scratch, cand = np.empty(d, dtype=np.int64), w.rows
     tile_flat(xy0[:, :, 0], teams, x)
     tile_flat(xy0[:, :, 1], teams, y)
     tile_flat(heading0, teams, heading)
@@ -97,54 +80,88 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
         from_flat(y, traj_xy[:, 0, :, 1])
         from_flat(heading, traj_heading[:, 0])
     sincos_all(heading, sin_h, cos_h)
+    s = state_new(w, n, n_ep)                          # the world's per-episode state (World.state), this call's own
+    begin(x, y, n, w, s)
     sums_finite = finite(genomes, w)                   # with each step's ranged sensing: the MLP's sums are finite
     xy = np.empty((n_ep, n, 2))                         # positions for the reward: float64 always
     acc = score_start(w, n_ep)
     each_step = stepwise(w)                            # measured: a score_step call left in the loop costs 5-10%
     for t in range(w.steps):
-        ranged = sense(x, y, sin_h, cos_h, n, w, obs)
+        ranged = sense(x, y, sin_h, cos_h, n, w, s, obs)
         act_flat(genomes, obs, cand, n_ep, hidden, hid, scratch, a0, a1, sums_finite and ranged)
-        move(x, y, heading, sin_h, cos_h, a0, a1, w)
+        move(x, y, heading, sin_h, cos_h, a0, a1, w, s)
+        tick(x, y, n, w, s)
         if record:
             from_flat(x, traj_xy[:, t + 1, :, 0])
             from_flat(y, traj_xy[:, t + 1, :, 1])
             from_flat(heading, traj_heading[:, t + 1])
         if each_step:
-            score_step(w, x, y, xy, acc)
+            score_step(w, x, y, xy, acc, s)
     from_flat(x, xy[:, :, 0])
     from_flat(y, xy[:, :, 1])
     if final_xy.shape[0] == n_ep:                      # (no slice assignment: its shape check compiles for seconds)
         from_flat(x, final_xy[:, :, 0])
         from_flat(y, final_xy[:, :, 1])
-    score_end(w, xy, acc, returns)
+    score_end(w, xy, acc, returns, s)
 
 
 # ---- batch-first steps: an environment's (PettingZoo, vectorised), the rollout's hooks one call at a time ----------
 
 @njit(**FAST)
-def observe(xy, heading, w, out):
-    """Observations of the world ``w``'s hook ``sense``: xy (E, N, 2), heading (E, N) -> out (E, N, D), in the
-    precision of xy."""
+def state_of(xy, w):
+    """The world's state (``World.state``) of E episodes whose rovers start at xy (E, N, 2): allocated, then filled
+    by the hook ``begin``; one per environment, carried from step to step (an empty tuple for a world without)."""
+    n_ep, n = xy.shape[0], xy.shape[1]
+    flat = np.empty((2, n * n_ep), dtype=xy.dtype)
+    to_flat(xy[:, :, 0], flat[0])
+    to_flat(xy[:, :, 1], flat[1])
+    s = state_new(w, n, n_ep)
+    begin(flat[0], flat[1], n, w, s)
+    return s
+
+
+@njit(**FAST)
+def observe(xy, heading, w, s, out):
+    """Observations of the world ``w``'s hook ``sense`` with the state ``s`` (:func:`state_of`): xy (E, N, 2), heading
+    (E, N) -> out (E, N, D), in the precision of xy."""
     n_ep, n = heading.shape
     ne = n * n_ep
     state = flat_pose(xy, heading, 5)
     obs = np.empty(w.obs_dim * ne, dtype=xy.dtype)
-    sense(state[0], state[1], state[3], state[4], n, w, obs)
+    sense(state[0], state[1], state[3], state[4], n, w, s, obs)
     for k in range(w.obs_dim):
         from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
 
 
 @njit(**FAST)
-def step(xy, heading, actions, w):
-    """One step of the hook ``move``, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2) (a0, a1 in [-1, 1])."""
-    _moved(xy, heading, actions, w)
+def sensed_rows(xy, heading, w, s, extra):
+    """How many rows of the observation the hook ``sense`` fills: it writes into D + ``extra`` rows of NaN, and a row
+    counts when every entry of it is a number. xy (E, N, 2), heading (E, N) (``World.check_sense``)."""
+    n_ep, n = heading.shape
+    ne = n * n_ep
+    state = flat_pose(xy, heading, 5)
+    obs = np.full((w.obs_dim + extra) * ne, np.nan, dtype=xy.dtype)
+    sense(state[0], state[1], state[3], state[4], n, w, s, obs)
+    filled = np.zeros(w.obs_dim + extra, dtype=np.bool_)
+    for k in range(w.obs_dim + extra):
+        filled[k] = not np.isnan(obs[k * ne:(k + 1) * ne]).any()
+    return filled
 
 
 @njit(**FAST)
-def _moved(xy, heading, actions, w):
+def step(xy, heading, actions, w, s):
+    """One step of the hooks ``move`` and ``tick``, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2) (a0, a1
+    in [-1, 1]), the state ``s`` (:func:`state_of`)."""
+    _moved(xy, heading, actions, w, s)
+
+
+@njit(**FAST)
+def _moved(xy, heading, actions, w, s):
     """:func:`step`'s work; returns its flat state (``stages.flat_state``) after the move, for :func:`env_step`."""
+    n = heading.shape[1]
     state = flat_state(xy, heading, actions)
-    move(state[0], state[1], state[2], state[3], state[4], state[5], state[6], w)
+    move(state[0], state[1], state[2], state[3], state[4], state[5], state[6], w, s)
+    tick(state[0], state[1], n, w, s)
     pose_back(state, xy, heading)
     return state
 
@@ -152,38 +169,47 @@ def _moved(xy, heading, actions, w):
 @njit(cache=True)
 def returns_of(xy, w, out):
     """Episode returns from trajectories: xy (E, T+1, N, 2) float64 (index 0 the start, which no reading scores)
-    -> out (E,), through the hooks ``score_start``, ``score_step`` (steps 1..T) and ``score_end`` (step T)."""
+    -> out (E,), through the hooks ``begin`` (at index 0), ``tick`` and ``score_step`` (steps 1..T) and ``score_end``
+    (step T). The state follows the positions only (a world whose ``move`` changes the state from the actions is
+    scored so only where its reward does not read that part)."""
     n_ep, n = xy.shape[0], xy.shape[2]
     acc = score_start(w, n_ep)
     flat = np.empty((2, n * n_ep))
     scratch = np.empty((n_ep, n, 2))
-    for t in range(1, xy.shape[1] if stepwise(w) else 1):
+    to_flat(xy[:, 0, :, 0], flat[0])
+    to_flat(xy[:, 0, :, 1], flat[1])
+    s = state_new(w, n, n_ep)
+    begin(flat[0], flat[1], n, w, s)
+    each_step = stepwise(w)
+    for t in range(1, xy.shape[1]):
         to_flat(xy[:, t, :, 0], flat[0])
         to_flat(xy[:, t, :, 1], flat[1])
-        score_step(w, flat[0], flat[1], scratch, acc)
+        tick(flat[0], flat[1], n, w, s)
+        if each_step:
+            score_step(w, flat[0], flat[1], scratch, acc, s)
     final = np.ascontiguousarray(xy[:, xy.shape[1] - 1])
-    score_end(w, final, acc, out)
+    score_end(w, final, acc, out, s)
 
 
 @njit(**FAST)
-def env_step(xy, heading, actions, w, acc, value, obs):
-    """One step of E environments of the world ``w`` in one call, in place: move (hook ``move``), score
+def env_step(xy, heading, actions, w, s, acc, value, obs):
+    """One step of E environments of the world ``w`` in one call, in place: move (hooks ``move``, ``tick``), score
     (``score_step`` where ``stepwise``, then ``score_end``: the running value (E,) in ``value``), observe (``sense``)
     into obs (E, N, D).
-    xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; ``acc`` from ``score_start(w, E)``
-    (:func:`env_start`), carried from step to step of the episode."""
+    xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; the state ``s`` (:func:`state_of`)
+    and ``acc`` from ``score_start(w, E)`` (:func:`env_start`), both carried from step to step of the episode."""
     n_ep, n = heading.shape
     ne = n * n_ep
-    state = _moved(xy, heading, actions, w)
+    state = _moved(xy, heading, actions, w, s)
     x, y, sin_h, cos_h = state[0], state[1], state[3], state[4]   # sin_h, cos_h follow the new heading
     pos = np.empty((n_ep, n, 2))                          # the reward reads float64
     if stepwise(w):
-        score_step(w, x, y, pos, acc)
+        score_step(w, x, y, pos, acc, s)
     from_flat(x, pos[:, :, 0])
     from_flat(y, pos[:, :, 1])
-    score_end(w, pos, acc, value)
+    score_end(w, pos, acc, value, s)
     flat = np.empty(w.obs_dim * ne, dtype=xy.dtype)
-    sense(x, y, sin_h, cos_h, n, w, flat)
+    sense(x, y, sin_h, cos_h, n, w, s, flat)
     for k in range(w.obs_dim):
         from_flat(flat[k * ne:(k + 1) * ne], obs[:, :, k])
 

@@ -4,25 +4,32 @@ A world is its hooks (``World.hooks``, a :class:`Hooks`). These are the rover wo
 on its stages and reward; a world plug-in passes its own functions with the same signatures (``docs/ARCHITECTURE.md``,
 "Adding a world"), and :mod:`~rovermarl.env.kernel.compose` compiles the rollout around them. The flat layout is
 :mod:`~rovermarl.env.kernel.stages`'s: x, y, heading, sin_h, cos_h, a0, a1 (N*E,) rover-major (pair ``q = i*E + e``),
-obs (D*N*E,) feature-major; ``w`` is the world's :class:`~rovermarl.env.kernel.fused.KernelWorld`.
+obs (D*N*E,) feature-major; ``w`` is the world's :class:`~rovermarl.env.kernel.record.KernelWorld`; ``s`` the
+world's per-episode state, a tuple of arrays in the order ``World.state`` declares them (per rover (N*E, width),
+row ``q``; per episode (E, width), row ``e = q % E``), allocated per call and empty for a world without state.
+``docs/WORLDS.md`` gives a worked example of each hook.
 
-- ``sense(x, y, sin_h, cos_h, n, w, obs) -> bool``: fill obs; True when the sensing took the ranged path (then,
+- ``begin(x, y, n, w, s)``: fill the state at the episode's start (the rovers at x, y; ``w.layout`` (E, K));
+- ``sense(x, y, sin_h, cos_h, n, w, s, obs) -> bool``: fill obs; True when the sensing took the ranged path (then,
   with ``finite``, the MLP leaves out the tanh's NaN case; return False if unsure);
-- ``move(x, y, heading, sin_h, cos_h, a0, a1, w)``: one step of motion in place (sin_h, cos_h follow heading);
+- ``move(x, y, heading, sin_h, cos_h, a0, a1, w, s)``: one step of motion in place (sin_h, cos_h follow heading);
+- ``tick(x, y, n, w, s)``: after each move, the state's own step from the new positions (also run when
+  trajectories are re-scored, ``returns_of``);
 - ``score_start(w, n_ep) -> acc``: the reward's state before the first step (any tuple of arrays);
 - ``stepwise(w) -> bool``: whether ``score_step`` runs after every step (False for a reward of the final positions);
-- ``score_step(w, x, y, xy, acc)``: after every step where ``stepwise`` (xy (E, N, 2) float64 scratch);
-- ``score_end(w, xy, acc, returns)``: the returns (E,) from the final positions xy (E, N, 2) float64 and acc;
-- ``rows(n, w) -> (N, D) int64``: each rover's input rows that may be nonzero, increasing, then -1
-  (``checks.input_rows``; every row ``0..D-1`` when unsure);
+- ``score_step(w, x, y, xy, acc, s)``: after every step where ``stepwise`` (xy (E, N, 2) float64 scratch);
+- ``score_end(w, xy, acc, returns, s)``: the returns (E,) from the final positions xy (E, N, 2) float64 and acc;
 - ``finite(genomes, w) -> bool``: every sum of the MLP is finite on ranged steps (False when unsure).
+
+The rows of the observation the MLP reads follow from ``World.obs_blocks`` (``w.rows``), and the state's arrays
+from ``World.state``: :mod:`~rovermarl.env.kernel.compose` writes ``state_new`` from that declaration.
 """
 
 from __future__ import annotations
 
 from typing import NamedTuple
 
-from rovermarl.env.kernel.checks import input_rows, mlp_finite
+from rovermarl.env.kernel.checks import mlp_finite
 from rovermarl.env.kernel.math import FAST
 from rovermarl.env.kernel.reward import fold, reward, settle, start
 from rovermarl.env.kernel.rules import FINAL
@@ -31,13 +38,13 @@ from rovermarl.jit import njit
 
 
 @njit(inline="always", **FAST)
-def sense(x, y, sin_h, cos_h, n, w, obs):
+def sense(x, y, sin_h, cos_h, n, w, s, obs):
     """POIs then rovers (``stages.sense_flat``): D = 3P + 2N rows."""
     return sense_flat(x, y, sin_h, cos_h, n, w.poi_xy, w.poi_type, w.sensor_range, obs)
 
 
 @njit(inline="always", **FAST)
-def move(x, y, heading, sin_h, cos_h, a0, a1, w):
+def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
     """Turn, then move (``stages.move_flat``, ``env.speed``)."""
     move_flat(x, y, heading, sin_h, cos_h, a0, a1, w.v_max, w.w_max, w.speed_mode)
 
@@ -55,7 +62,7 @@ def stepwise(w):
 
 
 @njit(inline="always", cache=True)
-def score_step(w, x, y, xy, acc):
+def score_step(w, x, y, xy, acc, s):
     """A per-step reading folds every step's positions (``reward.fold``)."""
     if w.reward_mode != FINAL:
         from_flat(x, xy[:, :, 0])
@@ -65,7 +72,7 @@ def score_step(w, x, y, xy, acc):
 
 
 @njit(inline="always", cache=True)
-def score_end(w, xy, acc, returns):
+def score_end(w, xy, acc, returns, s):
     """``final``: the positions after the last step (SPEC section 1, ``reward.reward``); else ``reward.settle``."""
     if w.reward_mode != FINAL:
         settle(w.reward_mode, w.steps, w.coupling, w.value, acc[2], acc[3], returns)
@@ -74,9 +81,19 @@ def score_end(w, xy, acc, returns):
 
 
 @njit(inline="always", cache=True)
-def rows(n, w):
-    """Leaves out the type rows of POIs of type 0 and each rover's own slot (``checks.input_rows``)."""
-    return input_rows(n, w.poi_type)
+def state_new(w, n, n_ep):
+    """The paper's world keeps no state: an empty tuple (a plug-in's is written from ``World.state``)."""
+    return ()
+
+
+@njit(inline="always", cache=True)
+def begin(x, y, n, w, s):
+    """Nothing to fill."""
+
+
+@njit(inline="always", cache=True)
+def tick(x, y, n, w, s):
+    """Nothing to advance."""
 
 
 @njit(inline="always", **FAST)
@@ -95,8 +112,9 @@ class Hooks(NamedTuple):
     score_start: object = score_start
     score_step: object = score_step
     score_end: object = score_end
-    rows: object = rows
     finite: object = finite
+    begin: object = begin
+    tick: object = tick
 
 
 ROVERS = Hooks()
