@@ -80,6 +80,24 @@ def test_compiled_loop_gives_the_python_loops_run(overrides, monkeypatch):
     _assert_same(py[:4], jit[:4])
 
 
+@pytest.mark.parametrize("overrides", [["+env._target_=examples.obstacles.obstacles.Obstacles", "k=2"],
+                                       ["+env._target_=examples.moving_pois.moving_pois.MovingPois", "k=adaptive"]])
+def test_a_plugin_world_runs_the_compiled_loop_and_gets_the_python_loops_run(overrides, monkeypatch):
+    sys.path.insert(0, str(ROOT))
+    run = Run(to_plain(make_cfg(*overrides, "generations=10")), 0)
+    assert compiled.refusal(run.parts.algorithm, run.evaluate.fresh, True) is None
+    world = run.parts.algorithm.world
+    assert compiled.loop_of(world.compiled).__name__.startswith("rovermarl_loop_")
+    py = _run(overrides, "python", monkeypatch)
+    calls = []
+    copy = compiled.loop_of(world.compiled)
+    real = copy._generations
+    monkeypatch.setattr(copy, "_generations", lambda *a: calls.append(1) or real(*a))
+    jit = _run(overrides, "auto", monkeypatch)
+    assert len(calls) > 1 and jit[0][0]["accepted"].any()
+    _assert_same(py[:4], jit[:4])
+
+
 class MyEXP3(EXP3):
     """A user's variant of EXP3: its rules may differ, so it takes the Python loop."""
 
@@ -109,7 +127,6 @@ def test_compiled_loop_only_where_it_applies(overrides, target, local, expected)
     (["k=ucb1"], "runs only the packaged operators FixedK, EXP3 as selector, not "),
     (["k=1", "evaluation.fresh_ic=true"], "under evaluation.fresh_ic every generation draws new initial conditions"),
     (["k=1", "parallel.ic_shards=2"], "IC shards (parallel.ic_shards > 1) score teams in other processes"),
-    (["+env._target_=examples.random_pois.random_pois.RandomPois"], "a world plug-in has its own compiled rollout"),
     (["algorithm=ccea"], "the CCEA has no compiled generation loop"),
 ])
 def test_a_compiled_loop_where_none_applies_is_refused_in_one_line(overrides, why):
