@@ -69,3 +69,36 @@ def _range(lo, hi) -> str:
     if hi is not None:
         return f" <= {hi}"
     return ""
+
+
+def plugin_line(exc: BaseException) -> str | None:
+    """One line for an exception a plug-in's code raised (a frame of it outside rovermarl, Python and the installed
+    packages): ``<Type>: <message> (in <file>:<line>, <function>)``, also for a Ray task's error (its cause and the
+    worker's traceback text); None for an exception that did not pass through a plug-in's code."""
+    import re
+    import traceback
+
+    cause = getattr(exc, "cause", None) or exc
+    text = getattr(exc, "traceback_str", None)
+    if text:
+        frames = [(f, int(n), fn) for f, n, fn in re.findall(r'File "([^"]+)", line (\d+), in (\S+)', text)]
+    else:
+        frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(cause.__traceback__)]
+    mine = [f for f in frames if _plugin_file(f[0])]
+    if not mine:
+        return None
+    file, line, func = mine[-1]
+    message = " ".join(str(cause).split()) or "(no message)"
+    return f"{type(cause).__name__}: {message} (in {file}:{line}, {func})"
+
+
+def _plugin_file(path: str) -> bool:
+    import os
+    import sys
+    from pathlib import Path
+
+    if path.startswith("<") or "rovermarl_worlds" in path or "site-packages" in path:
+        return False
+    p = os.path.realpath(path)
+    homes = {os.path.realpath(d) for d in (sys.prefix, sys.base_prefix, str(Path(__file__).parent))}
+    return not any(p.startswith(h + os.sep) for h in homes)

@@ -38,7 +38,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
 from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
-from rovermarl.errors import ConfigError  # noqa: E402
+from rovermarl.errors import ConfigError, plugin_line  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.safe_read import Unsafe, check_tree  # noqa: E402
@@ -74,6 +74,12 @@ def task(cfg: DictConfig) -> float:
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
         cause = getattr(e, "cause", None) or e
         raise Stop(f"{PROG}: error: {name}: {' '.join(str(cause).split())}") from None
+    except Exception as e:                            # a plug-in's (world, algorithm): one line, also from Ray
+        line = plugin_line(e)
+        if line is None or os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        raise Stop(f"{PROG}: error: {name}: a plug-in raised {line}; HYDRA_FULL_ERROR=1 shows the traceback") \
+            from None
 
 
 class Stop(SystemExit):

@@ -110,3 +110,16 @@ def test_two_envs_on_one_world_keep_their_own_state():
     for i in (0, 1):
         np.testing.assert_array_equal(both[i], alone[i])
     assert not np.array_equal(alone[0], alone[1])
+
+
+def test_make_world_builds_a_plugin_from_python_and_names_a_bad_key_in_one_line():
+    w = make_world("duo", world=MovingPois, drift_radius=3.0, steps=12)
+    assert type(w) is MovingPois and w.drift_radius == 3.0 and w.steps == 12 and w.n_pois == 10
+    assert type(make_world("solo", world="examples.moving_pois.moving_pois.MovingPois")) is MovingPois
+    with pytest.raises(errors.ConfigError, match=r"^env.energy=12.0: unknown key; allowed: .*drift_radius") as e:
+        make_world("duo", world=MovingPois, energy=12.0)
+    assert "\n" not in str(e.value)
+    with pytest.raises(errors.ConfigError, match=r"^world=.*: must be a subclass of rovermarl.env.World"):
+        make_world("duo", world=dict)
+    with pytest.raises(errors.ConfigError, match=r"^env.drift_radius=-1: must be"):
+        make_world("duo", world=MovingPois, drift_radius=-1)

@@ -1,4 +1,4 @@
-"""World plug-ins from outside the package (examples/obstacles, examples/random_pois): each trains from its README
+"""World plug-ins from outside the package (examples/obstacles, random_pois, moving_pois): each trains from its README
 command, replays and draws; its rollout is compiled around its own hooks and agrees with the step-by-step
 environment; its PettingZoo env passes PettingZoo's parallel API test; its world rules hold."""
 
@@ -15,8 +15,8 @@ from rovermarl.env.kernel import fused
 from rovermarl.pettingzoo import RoverParallelEnv
 from tests.conftest import ROOT, run_cli
 
-PLUGINS = ("obstacles", "random_pois")
-DRAWN = {"obstacles": "/world/obstacles", "random_pois": "/world/ring"}
+PLUGINS = ("obstacles", "random_pois", "moving_pois")
+DRAWN = {"obstacles": "/world/obstacles", "random_pois": "/world/ring", "moving_pois": "/world/drift"}
 
 
 def _world(name: str, **env):
@@ -79,6 +79,8 @@ def test_a_plugin_draws_and_replays_only_when_trusted(trained, tmp_path):
     for rrd in (tmp_path / "r.rrd", out / "runs/seed_000/run.rrd"):
         entities = {str(c.entity_path) for c in RrdReader(str(rrd)).stream()}
         assert DRAWN[name] in entities
+        if name == "moving_pois":                                           # the POIs where they are at each step
+            assert "/world/episodes/0/pois" in entities
 
 
 @pytest.mark.parametrize("name", PLUGINS)

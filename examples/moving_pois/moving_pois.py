@@ -113,6 +113,9 @@ class MovingPois(World):
         speed *= rng.choice([-1.0, 1.0], size=(n, self.n_pois)) / self.drift_radius
         return np.stack([phase, speed], axis=-1).reshape(n, 2 * self.n_pois)
 
+    def poi_track(self, layout=None):
+        return None if layout is None else self.poi_path(layout)
+
     def poi_path(self, layout) -> np.ndarray:
         """(T+1, P, 2): where the POIs of an episode with ``layout`` (2P,) are at each step (numpy)."""
         phase, speed = np.asarray(layout, np.float64).reshape(self.n_pois, 2).T

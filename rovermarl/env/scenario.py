@@ -111,6 +111,11 @@ class Scenario:
         """(P, 2): the POIs of an episode whose layout is ``layout`` (K,); the paper's: fixed, ``poi_xy``."""
         return self.poi_xy
 
+    def poi_track(self, layout: np.ndarray | None = None) -> np.ndarray | None:
+        """(T+1, P, 2): where the POIs of an episode (``layout`` (K,)) are at each step, for a world whose POIs
+        move (the recording draws them there); None: they stay at :meth:`poi_positions` (the paper's)."""
+        return None
+
     def draw(self, ax, layout: np.ndarray | None = None) -> None:
         """Draw what the plug-in adds to the world (obstacles, ...) on matplotlib axes, for an episode's ``layout``."""
 

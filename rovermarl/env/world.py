@@ -158,15 +158,17 @@ class World(Starts, Scenario):
 
     # ---- construction -------------------------------------------------------------------------
     @classmethod
-    def from_config(cls, cfg, trust: bool | Collection[str] = False) -> World:
+    def from_config(cls, cfg, trust: bool | Collection[str] = False, cls_: type[World] | None = None) -> World:
         """Build from a composed config with ``setup``, ``env`` and ``policy`` sections: the class ``env._target_``
-        names (this one by default). Only rovermarl's own world unless ``trust`` (:func:`world_class`): the
-        training path trusts the config it composed from the command line; a read path of results never does
-        unless ``--trust-config`` is given. ``cfg`` may be a plain dict."""
+        names (this one by default), or ``cls_`` when given (a class the caller holds: ``make_world``). Only
+        rovermarl's own world unless ``trust`` (:func:`world_class`): the training path trusts the config it
+        composed from the command line; a read path of results never does unless ``--trust-config`` is given.
+        ``cfg`` may be a plain dict."""
         cfg = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
         setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
         env = dict(OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env)
-        cls = world_class(env.pop("_target_", None), trust)
+        target = env.pop("_target_", None)
+        cls = cls_ or world_class(target, trust)
         known = {f.name for f in fields(cls) if f.init}
         for key in env:
             if key not in known:

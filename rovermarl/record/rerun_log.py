@@ -62,6 +62,8 @@ def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps:
         drain()
         _metrics(rec, rr, result, series, every, drain)
         _trajectories(rec, rr, result, steps)
+        if steps:
+            _moving_pois(rec, rr, result, world)
         rec.log("legend", rr.TextDocument(legend(world, series, vmax), media_type="text/markdown"), static=True)
         data = stream.read(flush=True, flush_timeout_sec=FLUSH_S)
         with atomic_open(path) as f:
@@ -305,3 +307,18 @@ def _trajectories(rec, rr, result, steps) -> None:
             rec.send_columns(f"world/episodes/{e}/rovers", indexes=[step],
                              columns=rr.Points2D.columns(positions=xy[-1, e].reshape(t1 * n, 2), colors=step_colors,
                                                          radii=np.full(t1 * n, 0.3)).partition([n] * t1))
+
+
+def _moving_pois(rec, rr, result, world) -> None:
+    """The POIs of each episode where they are at each step (``World.poi_track``), for a world whose POIs move."""
+    layout = result.get("ic_layout")
+    if layout is None or len(layout) == 0 or world.poi_track(layout[0]) is None:
+        return
+    colors = palette.poi_rgb(np.array(world.coupling))
+    for e in range(len(layout)):
+        track = world.poi_track(layout[e])                                 # (T+1, P, 2)
+        t1, p = track.shape[:2]
+        points = rr.Points2D.columns(positions=track.reshape(t1 * p, 2), colors=np.tile(colors, (t1, 1)),
+                                     radii=np.full(t1 * p, 0.35))
+        rec.send_columns(f"world/episodes/{e}/pois", indexes=[rr.TimeColumn("step", sequence=np.arange(t1))],
+                         columns=points.partition([p] * t1))

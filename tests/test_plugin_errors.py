@@ -1,0 +1,58 @@
+"""An error a world plug-in's own code raises ends the launch with one line naming it (its type, message, file and
+line), also when it is raised in a Ray worker (here: the held-out scoring of a finished run draws 256 layouts)."""
+
+import os
+
+import pytest
+
+from rovermarl import errors
+from tests.conftest import ROOT, run_cli
+
+PLUGIN = '''from dataclasses import dataclass
+
+import numpy as np
+
+from rovermarl.env import World
+
+
+@dataclass(frozen=True, eq=False)
+class Picky(World):
+    layout_dim = 1
+
+    def draw_layout(self, rng, n):
+        if n > 16:
+            raise ValueError("picky: at most 16 layouts at once,\\n not %d" % n)
+        return np.zeros((n, 1))
+'''
+
+
+@pytest.fixture
+def picky(tmp_path):
+    (tmp_path / "picky.py").write_text(PLUGIN)
+    (tmp_path / "env").mkdir()
+    (tmp_path / "env" / "picky.yaml").write_text("defaults:\n  - rovers\n  - _self_\n_target_: picky.Picky\n")
+    return tmp_path
+
+
+def test_a_plugins_error_is_one_line_with_its_place():
+    try:
+        raise ValueError("bad\n value")
+    except ValueError as e:
+        line = errors.plugin_line(e)
+    assert line.startswith("ValueError: bad value (in ") and __file__ in line and "\n" not in line
+    try:
+        errors.number("x", "y")
+    except errors.ConfigError as e:                                     # rovermarl's own: not a plug-in's
+        assert errors.plugin_line(e) is None or __file__ in errors.plugin_line(e)
+
+
+@pytest.mark.parametrize("parallel", ["serial", "ray"])
+def test_a_plugin_error_in_a_worker_reaches_the_user_in_one_line(picky, parallel):
+    proc = run_cli("env=picky", f"hydra.searchpath=[file://{picky}]", "generations=20", "seeds=1",
+                   f"parallel={parallel}", f"hydra.run.dir={picky / 'out'}", cwd=picky,
+                   env={"PYTHONPATH": str(ROOT), "HYDRA_FULL_ERROR": "0"}, timeout=600)
+    assert proc.returncode != 0
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "a plug-in raised ValueError: picky: at most 16 layouts at once, not 256 (in " in last, proc.stderr[-3000:]
+    assert "picky.py:" in last and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert os.path.isdir(picky)
