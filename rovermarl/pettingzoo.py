@@ -220,7 +220,9 @@ class RoverParallelEnv(ParallelEnv):
     def _infos(self) -> dict:
         w = self.world
         count = np.zeros((1, w.n_pois), np.int64)
-        kernel.observers(self.xy.astype(np.float64), w.poi_positions(self.layout), w.kernel.obs_radius, count)
+        track = w.poi_track(self.layout)                                   # POIs that move: where they are now
+        pois = w.poi_positions(self.layout) if track is None else np.ascontiguousarray(track[self.t])
+        kernel.observers(self.xy.astype(np.float64), pois, w.kernel.obs_radius, count)
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 

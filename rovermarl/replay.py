@@ -91,6 +91,8 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     result = {"seed": 0, "score": np.array([score]), "behaviour_generation": np.zeros(1, dtype=np.int64),
               "behaviour_score": np.array([score]), "behaviour_xy": roll.xy[None].astype(np.float32),
               "occupancy_generation": np.zeros(1, dtype=np.int64), "occupancy_count": count[None]}
+    if len(ic) > 2 and np.shape(ic[2])[-1]:
+        result["ic_layout"] = np.asarray(ic[2])                         # a plug-in's layouts: POIs that move, drawn
     tag = "own" if ic_seed is None else str(ic_seed)
     out = out or run / f"resim_ic-{tag}.rrd"
     write_rrd(out, result, world, recording_id=f"{run.name}-resim-{tag}")
