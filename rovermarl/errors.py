@@ -79,7 +79,7 @@ def plugin_line(exc: BaseException) -> str | None:
     import traceback
 
     cause = getattr(exc, "cause", None) or exc
-    text = getattr(exc, "traceback_str", None)
+    text = getattr(exc, "traceback_str", None) or (str(exc) if cause is not exc else None)   # Ray's: in its text
     if text:
         frames = [(f, int(n), fn) for f, n, fn in re.findall(r'File "([^"]+)", line (\d+), in (\S+)', text)]
     else:

@@ -40,6 +40,10 @@ def test_a_plugins_error_is_one_line_with_its_place():
     except ValueError as e:
         line = errors.plugin_line(e)
     assert line.startswith("ValueError: bad value (in ") and __file__ in line and "\n" not in line
+    from ray.exceptions import RayTaskError
+    text = 'Traceback (most recent call last):\n  File "/elsewhere/picky.py", line 14, in draw_layout\n    raise'
+    remote = RayTaskError("advance", text, ValueError("bad\n value")).as_instanceof_cause()   # as ray.get raises it
+    assert errors.plugin_line(remote) == "ValueError: bad value (in /elsewhere/picky.py:14, draw_layout)"
     try:
         errors.number("x", "y")
     except errors.ConfigError as e:                                     # rovermarl's own: not a plug-in's

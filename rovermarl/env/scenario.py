@@ -43,6 +43,21 @@ class Scenario:
         """Check the plug-in's own fields (raise ``errors.ConfigError``: one line naming key, value and what is
         allowed); called before the kernel record is built."""
 
+    def check_sense(self) -> None:
+        """Run the hook ``sense`` once (seed 0's first start) and check that it fills exactly the rows that
+        :meth:`obs_blocks` declares; else one line saying both."""
+        p = self.prepare(self.initial_conditions(seed=0, n=1))
+        extra = 8
+        filled = self.compiled.sensed_rows(p.xy, p.heading, p.kernel, self.compiled.state_of(p.xy, p.kernel), extra)
+        d = self.obs_dim
+        if not filled[:d].all() or filled[d:].any():
+            wrote = int(np.flatnonzero(filled).max(initial=-1)) + 1
+            blocks = ", ".join(f"{name} {low.size}" for name, low, _ in self.obs_blocks())
+            raise errors.ConfigError(f"{type(self).__name__}.sense", wrote, f"rows filled, but obs_blocks declares "
+                                     f"{d} ({blocks}): sense must fill each of them and no more"
+                                     + ("" if filled[d:].any() or not filled[:d].any() else
+                                        f"; rows left unfilled: {np.flatnonzero(~filled[:d]).tolist()[:8]}"))
+
     def kernel_extra(self) -> tuple:
         """The plug-in's own arrays and numbers for its hooks (``KernelWorld.extra``), in the kernel's precision
         where they meet the rovers' state (``np.dtype(self.dtype)``). The paper's world: none.
