@@ -74,8 +74,9 @@ def hook_sources(modules) -> str:
             path = getattr(mod, "__file__", None)
             if path and (name == root or name.startswith(root + ".")):
                 files.add(Path(path).resolve())
-        path = Path(sys.modules[module].__file__).resolve()
-        files.update(path.parent.glob("*.py"))
+        own = getattr(sys.modules[module], "__file__", None)          # None: a notebook's (its imports are its name)
+        if own:
+            files.update(Path(own).resolve().parent.glob("*.py"))
     h = hashlib.sha256()
     for path in sorted(files):
         if path.suffix == ".py" and path.is_file():
