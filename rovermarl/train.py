@@ -74,6 +74,10 @@ def task(cfg: DictConfig) -> float:
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
         cause = getattr(e, "cause", None) or e
         raise Stop(f"{PROG}: error: {name}: {' '.join(str(cause).split())}") from None
+    except Exception:
+        if _SIGNALS:   # cleanup code raised over our interrupt (numpy's savez closing its zip): it is the interrupt
+            raise (Terminated() if signal.SIGTERM in _SIGNALS else KeyboardInterrupt()) from None
+        raise
 
 
 class Stop(SystemExit):
@@ -295,6 +299,8 @@ def _unraisable(unraisable) -> None:
     if _SIGNALS and unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
         _REARM.append(True)
         threading.Timer(0.01, _redeliver, (_SIGNALS[0],)).start()
+        return
+    if _SIGNALS:                       # a finalizer of what the interrupt cut short (a half-written zip): no noise
         return
     sys.__unraisablehook__(unraisable)
 
