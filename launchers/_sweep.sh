@@ -22,6 +22,22 @@ sweep() {  # sweep OVERRIDE... -- EXTRA...: one multirun into OUT
     "$PYTHON" -m rovermarl.train -m "$@" "generations=$GENERATIONS" "seeds=$SEEDS" "hydra.sweep.dir=$OUT"
 }
 
+job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it
+    "$PYTHON" -c 'import sys; from rovermarl.config import dirname, quote_numeric_options
+print(dirname(quote_numeric_options(sys.argv[1:])))' "$@"
+}
+
+compact_job() {  # compact_job OVERRIDE...: one job of a resumable study, skipped if its compact files are in
+    local name   # RESULTS; else run (resuming in OUT), then export every finished job of OUT into RESULTS
+    name="$(job_name "$@" "generations=$GENERATIONS")"
+    if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
+        echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
+        return
+    fi
+    sweep "$@"
+    "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS" --no-fig6
+}
+
 # results_dir NAME STUDY_GENERATIONS STUDY_SEEDS [HYDRA_OVERRIDE ...]: sets RESULTS, where the compact results,
 # figures and report of a study launcher go. The committed study (GENERATIONS and SEEDS equal to its budget, no
 # extra override that changes the numbers) refreshes results/NAME, which is committed data. Any other run goes

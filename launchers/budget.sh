@@ -14,17 +14,7 @@ OUT="${OUT:-outputs/budget}"
 source "$(dirname "$0")/_sweep.sh"
 results_dir budget 2000000 16 "$@"
 
-job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it
-    "$PYTHON" -c 'import sys; from rovermarl.config import dirname, quote_numeric_options
-print(dirname(quote_numeric_options(sys.argv[1:])))' "$@"
-}
 
 for method in k=1 k=2 k=adaptive team=homogeneous; do
-    name="$(job_name "$method" setup=duo "generations=$GENERATIONS" "$@")"
-    if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
-        echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
-        continue
-    fi
-    sweep "$method" setup=duo "$@"
-    "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS" --no-fig6
+    compact_job "$method" setup=duo "$@"
 done

@@ -22,21 +22,10 @@ for geometry in $SOLO_GEOMETRIES; do   # fail before any work on a malformed geo
     [[ "$geometry" =~ ^[0-9.]+,[0-9.]+$ ]] || { echo "$(basename "$0"): error: SOLO_GEOMETRIES: '$geometry' is not R,D" >&2; exit 2; }
 done
 
-job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it
-    "$PYTHON" -c 'import sys; from rovermarl.config import dirname, quote_numeric_options
-print(dirname(quote_numeric_options(sys.argv[1:])))' "$@"
-}
-
-job() {  # job SETUP RADIUS DISTANCE METHOD EXTRA...: one job, skipped if its compact files are in RESULTS
-    local overrides=("$4" "setup=$1" "env.obs_radius=$2" "env.poi_distance=$3") name
+job() {  # job SETUP RADIUS DISTANCE METHOD EXTRA...: one job (compact_job in _sweep.sh)
+    local overrides=("$4" "setup=$1" "env.obs_radius=$2" "env.poi_distance=$3")
     shift 4
-    name="$(job_name "${overrides[@]}" "generations=$GENERATIONS" "$@")"
-    if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
-        echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
-        return
-    fi
-    sweep "${overrides[@]}" "$@"
-    "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS" --no-fig6
+    compact_job "${overrides[@]}" "$@"
 }
 
 for radius in 2 3 4; do            # duo: every geometry

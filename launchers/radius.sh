@@ -26,21 +26,10 @@ for radius in $RADII; do   # fail before any work on a malformed radius
     [[ "$radius" =~ ^[0-9]+(\.[0-9]+)?$ ]] || { echo "$(basename "$0"): error: RADII: '$radius' is not a number" >&2; exit 2; }
 done
 
-job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it
-    "$PYTHON" -c 'import sys; from rovermarl.config import dirname, quote_numeric_options
-print(dirname(quote_numeric_options(sys.argv[1:])))' "$@"
-}
-
-job() {  # job SETUP RADIUS METHOD EXTRA...: one job, skipped if its compact files are in RESULTS
-    local overrides=("$3" "setup=$1" "env.obs_radius=$2" "env.poi_distance=13" "seed=16") name
+job() {  # job SETUP RADIUS METHOD EXTRA...: one job (compact_job in _sweep.sh)
+    local overrides=("$3" "setup=$1" "env.obs_radius=$2" "env.poi_distance=13" "seed=16")
     shift 3
-    name="$(job_name "${overrides[@]}" "generations=$GENERATIONS" "$@")"
-    if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
-        echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
-        return
-    fi
-    sweep "${overrides[@]}" "$@"
-    "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS" --no-fig6
+    compact_job "${overrides[@]}" "$@"
 }
 
 for radius in $RADII; do

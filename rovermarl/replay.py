@@ -69,6 +69,9 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_yaml
 
     job = run.parent.parent
+    if run.parent.name != "runs":                                      # a run dir is JOB/runs/seed_XXX
+        raise ReplayError(f"{run}: --resim needs genomes.npy and the job's .hydra/config.yaml: a run dir sits in a "
+                          "job's runs/")
     check_tree(job, "job dir")                                         # nothing followed out of it, no FIFO read
     cfg_path = next((p for p in (job / ".hydra" / "config.yaml", job / "config.yaml") if p.exists()), None)
     if cfg_path is None or not (run / "genomes.npy").exists():

@@ -1,11 +1,10 @@
 """Train: ``python -m rovermarl.train [-m] [group=option ...] [key=value ...]``.
 
 Every job of an invocation is composed and validated before anything runs (and before Ray starts); a bad config
-exits with status 2 and one line on stderr. Output dirs are named after the command's overrides
-(``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it. Ctrl-C (SIGINT) and
-SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``: the
-traceback too); Ray is shut down and no process it started outlives the launch.
-"""
+exits with status 2 and one line on stderr (a plug-in's error: 1, one line). Output dirs are named after the
+command's overrides (``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it.
+Ctrl-C and SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``:
+the traceback too); Ray is shut down and no process it started outlives the launch."""
 
 from __future__ import annotations
 
@@ -72,14 +71,13 @@ def task(cfg: DictConfig) -> float:
         raise Stop(f"{PROG}: error: {name}: cannot write {e.filename or 'a result file'}: {e.strerror}; fix it and "
                    "relaunch the same command to resume") from None
     except AlgorithmError as e:                       # on Ray, a RayTaskError that is also the cause's type
-        cause = getattr(e, "cause", None) or e
-        raise Stop(f"{PROG}: error: {name}: {' '.join(str(cause).split())}") from None
-    except Exception as e:                            # a plug-in's (world, algorithm): one line, also from Ray
-        line = plugin_line(e)
-        if line is None or os.environ.get("HYDRA_FULL_ERROR") == "1":
+        raise Stop(f"{PROG}: error: {name}: {' '.join(str(getattr(e, 'cause', None) or e).split())}") from None
+    except Exception as e:
+        if _SIGNALS:   # cleanup code raised over our interrupt (numpy's savez closing its zip): it is the interrupt
+            raise (Terminated() if signal.SIGTERM in _SIGNALS else KeyboardInterrupt()) from None
+        if os.environ.get("HYDRA_FULL_ERROR") == "1" or (line := plugin_line(e)) is None:   # a plug-in's: one line
             raise
-        raise Stop(f"{PROG}: error: {name}: a plug-in raised {line}; HYDRA_FULL_ERROR=1 shows the traceback") \
-            from None
+        raise Stop(f"{PROG}: error: {name}: a plug-in raised {line} (HYDRA_FULL_ERROR=1: traceback)") from None
 
 
 class Stop(SystemExit):
@@ -301,6 +299,8 @@ def _unraisable(unraisable) -> None:
     if _SIGNALS and unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
         _REARM.append(True)
         threading.Timer(0.01, _redeliver, (_SIGNALS[0],)).start()
+        return
+    if _SIGNALS:                       # a finalizer of what the interrupt cut short (a half-written zip): no noise
         return
     sys.__unraisablehook__(unraisable)
 

@@ -75,6 +75,18 @@ def test_claims_and_selectors_import_nothing_a_results_dir_names(results, tmp_pa
     assert "env._target_" in _one_line(proc)
 
 
+@pytest.mark.parametrize("command", [("claims",), ("selectors",)])
+def test_trust_config_is_the_one_switch_that_builds_a_named_world(results, tmp_path, command):
+    """The flag the user gives on the command line, and only it, lets claims and selectors import a plug-in."""
+    base = _copy(results, tmp_path, "base")
+    marker = tmp_path / "PWNED"
+    _plant(base / "results" / "evil", marker)
+    for config in (base / "results" / "evil").glob("*/config.yaml"):
+        _set_world(config, "results.evil.pwn.World")
+    run_cli(*command, "results/evil", "--trust-config", module="rovermarl.analysis", cwd=base, env=ENV)
+    assert marker.exists()
+
+
 def _planted_job(sweep_dir, marker, module_dir, target="pwn.World", setup="evil"):
     """A job dir the launch never wrote, beside the sweep's own: a copy whose world is a planted module's."""
     planted = sweep_dir / "planted"

@@ -352,7 +352,7 @@ REPLAY = [  # (argv with {t} for the trees dir, a part of the message)
     (["{t}/x.rrd", "--resim"], "--resim needs a run dir or job dir, not an .rrd"),
     (["{t}/run", "--no-viewer"], "has no run.rrd"),
     (["{t}/run", "--resim"], "--resim needs genomes.npy and the job's .hydra/config.yaml"),
-    (["{t}/bad", "--resim"], "unreadable run or job files"),
+    (["{t}/bad", "--resim"], "config.yaml is not a readable config"),
     (["{t}/noenv", "--resim"], "unreadable run or job files"),
     ([], "the following arguments are required: path"),
     (["{t}/run", "--bogus"], "unrecognized arguments: --bogus"),

@@ -55,11 +55,16 @@ def test_the_report_has_a_row_per_method_and_tests_against_k1(study):
 
 @pytest.mark.slow
 def test_the_figures_put_team_evaluations_on_the_x_axis(study):
-    index = json.loads((study / "sweep" / "figures" / "index.json").read_text())   # the end-of-sweep callback's
+    last = json.loads((study / "sweep" / "figures" / "index.json").read_text())   # the last launch's callback
+    assert {m for f in last["figures"] for m in f.get("methods", ())} == {"ccea D++"}  # reads only its own jobs
+    proc = subprocess.run([sys.executable, "-m", "rovermarl.plot", str(study / "sweep"), "--out",
+                           str(study / "all")], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    index = json.loads((study / "all" / "index.json").read_text())              # the whole sweep, drawn by plot
     curves = [f for f in index["figures"] if f["kind"] == "curves"]
     assert curves and all(f["x"] == "evals" for f in curves)
     assert {"ccea G", "ccea D", "ccea D++", "k=1"} <= set(curves[0]["methods"])
-    assert (study / "sweep" / "figures" / "curves_duo.png").is_file()
+    assert (study / "all" / "curves_duo.png").is_file()
     jobs = json.loads((study / "results" / "baselines.json").read_text())["jobs"]   # the launcher's, from the json
     for j in jobs:
         assert j["curve"]["evals"][0] == 1 and j["curve"]["evals"][-1] == j["team_evals_per_run"]

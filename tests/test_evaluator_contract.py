@@ -101,7 +101,9 @@ def test_the_observer_refuses_a_team_without_positions_in_one_line():
 
 def test_shards_give_the_local_evaluators_trajectories(ray_session):
     """IC shards implement the whole contract: a credit-based learner (rollout) runs on them, bit for bit."""
+    from rovermarl.parallel.ray_backend import release_pool
     from rovermarl.parallel.shards import ShardActor, ShardedEvaluation
+    release_pool()                  # an earlier test's chunk workers hold both CPUs; the product releases them too
     cfg = to_plain(make_cfg("setup=duo", "generations=3"))
     local = Run(cfg, 4).evaluate
     actors = [ShardActor.remote(cfg) for _ in range(2)]

@@ -147,3 +147,25 @@ def test_a_signal_while_the_figures_are_drawn_ends_in_one_line_and_the_relaunch_
     again = run_cli(*args, timeout=300)
     assert again.returncode == 0, again.stderr[-2000:]
     assert (sweep / "figures" / "curves_duo.png").is_file()
+
+
+def test_an_error_raised_over_an_interrupt_is_the_interrupt(monkeypatch, tmp_path):
+    """numpy's savez, cut by SIGTERM mid-write, raises ValueError from its own cleanup ("Can't close the ZIP file")
+    over our Terminated: the job still ends as terminated (exit 143, one line), with no traceback."""
+    from types import SimpleNamespace
+
+    from rovermarl import train
+
+    def savez_cut(*args, **kwargs):
+        raise ValueError("Can't close the ZIP file while there is an open writing handle on it.")
+
+    hc = SimpleNamespace(runtime=SimpleNamespace(choices={}, output_dir=str(tmp_path)),
+                         overrides=SimpleNamespace(task=[]))
+    monkeypatch.setattr(train.HydraConfig, "get", staticmethod(lambda: hc))
+    monkeypatch.setattr(train, "run_job", savez_cut)
+    monkeypatch.setattr(train, "_SIGNALS", [signal.SIGTERM])
+    with pytest.raises(train.Terminated):
+        train.task(None)
+    monkeypatch.setattr(train, "_SIGNALS", [])
+    with pytest.raises(ValueError):                                   # no signal: the error is the user's to see
+        train.task(None)

@@ -3,9 +3,9 @@
 - ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6] [--trust-config]``: write the compact results of
   every finished job, all or nothing (see :mod:`rovermarl.analysis.export`); the Fig. 6 re-run builds only the
   classes of rovermarl's config groups from the sweep's config unless ``--trust-config``.
-- ``claims RESULTS_DIR``: print the statistics of claims C1-C8 and write ``claims.md`` and ``claims.json``
-  (see :mod:`rovermarl.analysis.claims`).
-- ``selectors RESULTS_DIR [--against METHOD] [--x evals]``: the k-selector (or any method) comparison;
+- ``claims RESULTS_DIR [--trust-config]``: print the statistics of claims C1-C8 and write ``claims.md`` and
+  ``claims.json`` (see :mod:`rovermarl.analysis.claims`).
+- ``selectors RESULTS_DIR [--against METHOD] [--x evals] [--trust-config]``: the k-selector (or any method) comparison;
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
   (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
@@ -54,11 +54,13 @@ def parser() -> argparse.ArgumentParser:
                    "classes of rovermarl's config groups, at their groups' nodes)")
     c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
     c.add_argument("results", type=Path, help="results dir written by `export`")
+    _trust(c)
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
     s.add_argument("results", type=Path, help="results dir written by `export`")
     s.add_argument("--against", default="adaptive", help="method the others are tested against")
     s.add_argument("--x", choices=("generation", "evals"), default="generation", dest="x",
                    help="budgets and times in generations or in team evaluations (methods of different cost)")
+    _trust(s)
     r = sub.add_parser("readings", help="the readings study: export a sweep, its lifting readings, the report")
     r.add_argument("action", choices=("export", "lifting", "report"))
     r.add_argument("paths", type=Path, nargs="+", help="export: SWEEP_DIR RESULTS_DIR; lifting, report: RESULTS_DIR")
@@ -80,6 +82,11 @@ def parser() -> argparse.ArgumentParser:
     return p
 
 
+def _trust(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--trust-config", dest="trust", action="store_true",
+                   help="build a world plug-in the jobs' configs name (its module runs code; default: refused)")
+
+
 def main(argv=None) -> None:
     args = parser().parse_args(argv)
     try:
@@ -89,7 +96,7 @@ def main(argv=None) -> None:
                    log=lambda m: print(f"{PROG}: {m}", file=sys.stderr), trust=args.trust)
         elif args.command == "claims":
             from rovermarl.analysis.claims import claims
-            text, _ = claims(args.results)
+            text, _ = claims(args.results, args.trust)
             print(text, end="")
         elif args.command == "readings":
             _readings(args.action, args.paths)
@@ -108,7 +115,7 @@ def main(argv=None) -> None:
             print(report(args.budget, args.geometry), end="")
         else:
             from rovermarl.analysis.claims import selectors
-            text, _ = selectors(args.results, args.against, args.x)
+            text, _ = selectors(args.results, args.against, args.x, args.trust)
             print(text, end="")
     except (ResultsError, SweepError, ConfigError, OSError) as e:   # ConfigError: a config refused; OSError: a file
         print(f"{PROG}: error: {e}", file=sys.stderr)

@@ -37,12 +37,13 @@ REQUIRED = {"solo": ("k=1", "k=2", "k=4", "homogeneous", "adaptive"),
 class Claims:
     """Looks up exported jobs by (setup, label) and formats the statistics of each claim."""
 
-    def __init__(self, results: list[Result], x: str = "generation"):
+    def __init__(self, results: list[Result], x: str = "generation", trust: bool = False):
         """``x``: measure budgets and times in generations (``generation``) or in team evaluations (``evals``: the
-        initial team's included; methods that spend more than one per generation then line up)."""
+        initial team's included; methods that spend more than one per generation then line up). ``trust``: build a
+        world plug-in a job's config names (``--trust-config``; its module runs code), else only rovermarl's own."""
         if x not in ("generation", "evals"):
             raise ValueError(f"x must be 'generation' or 'evals', got {x!r}")
-        self.x, self.unit = x, "generations" if x == "generation" else "team evaluations"
+        self.x, self.unit, self.trust = x, "generations" if x == "generation" else "team evaluations", trust
         self.jobs = {(r.setup, r.label): r for r in results}
         self.budget = max(int(self.evals(r, r.curves.generations)) for r in results)
         self.budgets = sorted({max(self.budget // 100, 1), max(self.budget // 10, 1), self.budget})
@@ -78,7 +79,7 @@ class Claims:
     def levels(self, setup: str) -> tuple[float, float]:
         """(optimum, threshold) of a setup: the world's maximum return, and the paper's threshold (else the
         optimum)."""
-        best = optimum(self.methods(setup)[0].config())
+        best = optimum(self.methods(setup)[0].config(), self.trust)
         return best, THRESHOLDS.get(setup, best)
 
     # ---- building blocks --------------------------------------------------------------------------------------
@@ -307,11 +308,11 @@ def _what(what: str) -> str:
     return "final score" if what == "final" else f"generations to {what.split(':')[1]}"
 
 
-def selectors(path: Path, against: str = "adaptive", x: str = "generation") -> tuple[str, dict]:
+def selectors(path: Path, against: str = "adaptive", x: str = "generation", trust: bool = False) -> tuple[str, dict]:
     """The method comparison of the results dir ``path`` (the k-selectors, or any methods): per setup, every
     method's table row, with Mann-Whitney U against ``against`` (the paper's EXP3); writes ``selectors.md`` and
     ``selectors.json``. ``x="evals"`` measures budgets and times in team evaluations (see :class:`Claims`)."""
-    c = Claims(load(path), x)
+    c = Claims(load(path), x, trust)
     u = c.unit
     c.lines += [f"Budget: {c.budget:,} {u} per run; scores at " + ", ".join(f"{b:,}" for b in c.budgets) +
                 f" {u}. 95% CIs in brackets; p: two-sided Mann-Whitney U against `{against}` (for "
@@ -327,9 +328,9 @@ def selectors(path: Path, against: str = "adaptive", x: str = "generation") -> t
     return text, c.data
 
 
-def claims(path: Path) -> tuple[str, dict]:
+def claims(path: Path, trust: bool = False) -> tuple[str, dict]:
     """Compute the claims report of the results dir ``path``; writes ``claims.md`` and ``claims.json`` there."""
-    text, data = Claims(load(path)).run()
+    text, data = Claims(load(path), trust=trust).run()
     with atomic_open(Path(path) / "claims.md", "w") as f:
         f.write(text)
     write_json(Path(path) / "claims.json", json.loads(json.dumps(data, default=float)))

@@ -32,10 +32,10 @@ def threshold_for(setup: str, thresholds: Mapping[str, float] | None = None) -> 
     return thresholds.get(setup, thresholds.get("*", THRESHOLDS.get(setup)))
 
 
-def optimum(config) -> float:
+def optimum(config, trust: bool = False) -> float:
     """The best score of a job with the composed ``config`` (a DictConfig with setup, env, policy): its world's
-    maximum team return, earned in every episode."""
-    return World.from_config(config).max_return
+    maximum team return, earned in every episode. A world plug-in's only with ``trust`` (``--trust-config``)."""
+    return World.from_config(config, trust).max_return
 
 
 def quartile_times(times, quartiles: Iterable[float] = QUARTILES) -> list[float]:
