@@ -71,10 +71,12 @@ def _range(lo, hi) -> str:
     return ""
 
 
-def plugin_line(exc: BaseException) -> str | None:
-    """One line for an exception a plug-in's code raised (a frame of it outside rovermarl, Python and the installed
-    packages): ``<Type>: <message> (in <file>:<line>, <function>)``, also for a Ray task's error (its cause and the
-    worker's traceback text); None for an exception that did not pass through a plug-in's code."""
+def plugin_line(exc: BaseException, homes) -> str | None:
+    """One line for an exception a plug-in's code raised (a frame in one of the directories ``homes``, those of the
+    plug-ins a config names: :func:`plugin_homes`): ``<Type>: <message> (in <file>:<line>, <function>)``, also for
+    a Ray task's error (its cause and the worker's traceback text); None for an exception that did not pass through
+    a plug-in's code."""
+    import os
     import re
     import traceback
 
@@ -84,7 +86,8 @@ def plugin_line(exc: BaseException) -> str | None:
         frames = [(f, int(n), fn) for f, n, fn in re.findall(r'File "([^"]+)", line (\d+), in (\S+)', text)]
     else:
         frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(cause.__traceback__)]
-    mine = [f for f in frames if _plugin_file(f[0])]
+    homes = [os.path.realpath(h) + os.sep for h in homes]
+    mine = [f for f in frames if any(os.path.realpath(f[0]).startswith(h) for h in homes)]
     if not mine:
         return None
     file, line, func = mine[-1]
@@ -92,13 +95,23 @@ def plugin_line(exc: BaseException) -> str | None:
     return f"{type(cause).__name__}: {message} (in {file}:{line}, {func})"
 
 
-def _plugin_file(path: str) -> bool:
+def plugin_homes(cfg) -> list[str]:
+    """The directories of the plug-in modules (outside rovermarl) that a config's ``_target_`` keys name and that
+    this process has imported."""
     import os
     import sys
-    from pathlib import Path
 
-    if path.startswith("<") or "rovermarl_worlds" in path or "site-packages" in path:
-        return False
-    p = os.path.realpath(path)
-    homes = {os.path.realpath(d) for d in (sys.prefix, sys.base_prefix, str(Path(__file__).parent))}
-    return not any(p.startswith(h + os.sep) for h in homes)
+    from omegaconf import OmegaConf
+
+    out, todo = [], [OmegaConf.to_container(cfg) if OmegaConf.is_config(cfg) else cfg]   # unresolved: no resolver
+    while todo:
+        node = todo.pop()
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, (list, tuple)) else ()
+        for key, value in items:
+            if key == "_target_" and isinstance(value, str) and not value.startswith("rovermarl."):
+                module = sys.modules.get(value.rpartition(".")[0])
+                if getattr(module, "__file__", None):
+                    out.append(os.path.dirname(module.__file__))
+            elif not isinstance(value, (str, int, float, bool, type(None))):
+                todo.append(value)
+    return out

@@ -37,7 +37,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
 from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
-from rovermarl.errors import ConfigError, plugin_line  # noqa: E402
+from rovermarl.errors import ConfigError, plugin_homes, plugin_line  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.safe_read import Unsafe, check_tree  # noqa: E402
@@ -75,7 +75,7 @@ def task(cfg: DictConfig) -> float:
     except Exception as e:
         if _SIGNALS:   # cleanup code raised over our interrupt (numpy's savez closing its zip): it is the interrupt
             raise (Terminated() if signal.SIGTERM in _SIGNALS else KeyboardInterrupt()) from None
-        if os.environ.get("HYDRA_FULL_ERROR") == "1" or (line := plugin_line(e)) is None:   # a plug-in's: one line
+        if os.environ.get("HYDRA_FULL_ERROR") == "1" or (line := plugin_line(e, plugin_homes(cfg))) is None:
             raise
         raise Stop(f"{PROG}: error: {name}: a plug-in raised {line} (HYDRA_FULL_ERROR=1: traceback)") from None
 

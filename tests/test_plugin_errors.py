@@ -38,16 +38,16 @@ def test_a_plugins_error_is_one_line_with_its_place():
     try:
         raise ValueError("bad\n value")
     except ValueError as e:
-        line = errors.plugin_line(e)
+        line = errors.plugin_line(e, [os.path.dirname(__file__)])
+        assert errors.plugin_line(e, []) is None                        # not in a plug-in's directory
     assert line.startswith("ValueError: bad value (in ") and __file__ in line and "\n" not in line
     from ray.exceptions import RayTaskError
     text = 'Traceback (most recent call last):\n  File "/elsewhere/picky.py", line 14, in draw_layout\n    raise'
     remote = RayTaskError("advance", text, ValueError("bad\n value")).as_instanceof_cause()   # as ray.get raises it
-    assert errors.plugin_line(remote) == "ValueError: bad value (in /elsewhere/picky.py:14, draw_layout)"
-    try:
-        errors.number("x", "y")
-    except errors.ConfigError as e:                                     # rovermarl's own: not a plug-in's
-        assert errors.plugin_line(e) is None or __file__ in errors.plugin_line(e)
+    want = "ValueError: bad value (in /elsewhere/picky.py:14, draw_layout)"
+    assert errors.plugin_line(remote, ["/elsewhere"]) == want
+    assert errors.plugin_homes({"env": {"_target_": "os.path.join"}, "k": [{"_target_": "rovermarl.x.Y"}]}) == [
+        os.path.dirname(os.path.__file__)]
 
 
 @pytest.mark.parametrize("parallel", ["serial", "ray"])
