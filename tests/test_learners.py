@@ -56,3 +56,33 @@ def test_cma_learns_solo():
     plain = to_plain(make_cfg("algorithm=cma", "setup=solo", "generations=60", "record=off"))
     out = advance(plain, 0, None, 60)
     assert out["score"][-1] > out["initial_score"] + 0.5, (out["initial_score"], out["score"][-1])
+
+
+def test_a_missing_rl_extra_is_named_in_one_line():
+    import importlib.util
+    if importlib.util.find_spec("torch") is not None:
+        pytest.skip("torch is installed: the [rl] path runs in tests/test_sb3.py")
+    with pytest.raises(ConfigError, match=r'pip install -e "\.\[rl\]"') as e:
+        validate(compose_config("algorithm=ppo"))
+    assert "\n" not in str(e.value)
+
+
+def test_docs_learners_is_generated_from_the_committed_results():
+    from pathlib import Path
+
+    from rovermarl.analysis import learners
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "LEARNERS.md").read_text()
+    assert learners.block(doc) == learners.report(root / "results" / "learners"), \
+        "docs/LEARNERS.md is stale: python -m rovermarl.analysis learners results/learners"
+
+
+def test_learner_cells_are_named_from_their_overrides_and_holm_adjusts():
+    from rovermarl.analysis.learners import classify, holm
+    assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1")
+    assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == ("obstacles",
+                                                                                                      "ccea_dpp")
+    assert classify("budget.agent_steps=5,setup=duo,team=homogeneous") == ("duo", "cces_homogeneous")
+    assert classify("algorithm.reward=global,algorithm=ccea,budget.agent_steps=5,setup=duo") is None
+    assert classify("k=1,setup=solo") is None                           # not a job of the study (no agent-steps)
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
