@@ -8,17 +8,17 @@ rewards and dones (B*N,); an episode's last step returns the next episode's firs
 
 >>> from stable_baselines3 import PPO
 >>> from rovermarl.sb3 import VecEnv
->>> PPO("MlpPolicy", VecEnv(setup="solo"), n_steps=15).learn(768_000 // 4)   # doctest: +SKIP
+>>> PPO("MlpPolicy", VecEnv(setup="solo"), n_steps=15).learn(768_000 // 4)  # doctest: +SKIP
 
-:class:`PPO` trains SB3's PPO whose actor is the world's own policy: ``obs -> tanh(hidden) -> tanh(2)`` (SPEC section 4),
-the mean of a Gaussian with a learned log-std, and a separate tanh value network. Its deterministic policy is
-therefore a genome (P,) the world scores as every other learner's team is scored: the team is N copies of it, its
-score after each generation (one PPO iteration: ``n_steps`` steps of ``num_envs`` environments, then the update) is
-F on the run's initial conditions, its held-out score F on the run's held-out ones. The critic alone also sees the
-step t / T (the time feature): the genome's inputs are the world's sensors, and without t the value of a state whose
-reward comes at the episode's last step cannot be learned (PPO then learns nothing). Resume is bit-identical: the state holds the network and Adam
-moments as arrays and the torch, numpy-global and environment random states, and each iteration starts on fresh
-episodes (``n_steps`` is a multiple of ``env.steps``).
+:class:`PPO` trains SB3's PPO whose actor is the world's own policy, ``obs -> tanh(hidden) -> tanh(2)`` (SPEC
+section 4), as the mean of a Gaussian with a learned log-std, and a separate tanh value network. Its deterministic
+policy is therefore a genome (P,) the world scores as every other learner's team is scored: the team is N copies of
+it, its score after each generation (one PPO iteration: ``n_steps`` steps of ``num_envs`` environments, then the
+update) is F on the run's initial conditions, its held-out score F on the run's held-out ones. The critic alone also
+sees the step t / T (the time feature): the genome's inputs are the world's sensors, and without t the value of a
+state whose reward comes at the episode's last step cannot be learned (PPO then learns nothing). Resume is
+bit-identical: the state holds the network and Adam moments as arrays and the torch, numpy-global and environment
+random states, and each iteration starts on fresh episodes (``n_steps`` is a multiple of ``env.steps``).
 """
 
 from __future__ import annotations
@@ -221,7 +221,8 @@ class PPO(Algorithm):
         for name, param in model.policy.named_parameters():
             a = state["adam"][name]
             if a["step"] > 0:
-                opt.state[param] = {"step": torch.tensor(float(a["step"])), "exp_avg": torch.from_numpy(np.array(a["m"])),
+                opt.state[param] = {"step": torch.tensor(float(a["step"])),
+                                    "exp_avg": torch.from_numpy(np.array(a["m"])),
                                     "exp_avg_sq": torch.from_numpy(np.array(a["v"]))}
         model.num_timesteps = int(state["timesteps"])
 
@@ -243,17 +244,17 @@ class _Rng:
         self.run = state
 
     def __enter__(self):
-        self.keep = (torch.get_rng_state(), np.random.get_state(legacy=False), torch.get_num_threads())
+        self.keep = (torch.get_rng_state(), np.random.get_state(legacy=False), torch.get_num_threads())  # noqa: NPY002 - SB3 shuffles with it
         torch.set_rng_state(torch.from_numpy(np.array(self.run["torch"], dtype=np.uint8)))
         if self.run.get("numpy") is not None:
-            np.random.set_state(self.run["numpy"])
+            np.random.set_state(self.run["numpy"])  # noqa: NPY002 - SB3 shuffles with it
         torch.set_num_threads(1)
         return self
 
     def state(self) -> dict:
-        return {"torch": torch.get_rng_state().numpy().copy(), "numpy": np.random.get_state(legacy=False)}
+        return {"torch": torch.get_rng_state().numpy().copy(), "numpy": np.random.get_state(legacy=False)}  # noqa: NPY002 - SB3 shuffles with it
 
     def __exit__(self, *exc):
         torch.set_rng_state(self.keep[0])
-        np.random.set_state(self.keep[1])
+        np.random.set_state(self.keep[1])  # noqa: NPY002 - SB3 shuffles with it
         torch.set_num_threads(self.keep[2])

@@ -17,6 +17,8 @@ from rovermarl.sb3 import VecEnv  # noqa: E402
 from rovermarl.vector import DEFAULTS  # noqa: E402
 from tests.conftest import make_cfg  # noqa: E402
 
+pytestmark = pytest.mark.slow                    # .ci/run's slow part, after pip install -e ".[rl]"
+
 SMALL = ("algorithm=ppo", "algorithm.num_envs=16", "algorithm.batch_size=240", "algorithm.n_epochs=2", "record=off")
 
 
@@ -26,7 +28,7 @@ def test_the_vecenv_view_flattens_agents_and_keeps_the_defaults():
     env.seed(3)
     obs = env.reset()
     assert obs.shape == (env.num_envs, 39)
-    for t in range(15):
+    for _ in range(15):
         env.step_async(np.zeros((env.num_envs, 2)))
         obs, rew, done, infos = env.step_wait()
     assert done.all() and "terminal_observation" in infos[0] and rew.shape == (env.num_envs,)
@@ -46,9 +48,9 @@ def test_ppo_resumes_bit_identically_and_its_team_is_its_deterministic_policy():
     model = algo._model()
     algo._load(model, want)
     world = make_world("solo")
-    obs = np.random.default_rng(0).uniform(0, 1, (8, world.obs_dim)).astype(np.float32)
+    obs = np.random.default_rng(0).uniform(0, 1, (8, world.obs_dim + 1)).astype(np.float32)   # sensors, t / T
     mean = model.policy.predict(obs, deterministic=True)[0]
-    genome = whole["genomes"][0]
+    genome, obs = whole["genomes"][0], obs[:, :-1]                  # the actor reads the sensors only
     assert np.allclose(mean, np.clip(np.tanh(np.tanh(obs @ genome[:38 * 16].reshape(38, 16)
                                                      + genome[608:624]) @ genome[624:656].reshape(16, 2)
                                              + genome[656:]), -1, 1), atol=1e-5)

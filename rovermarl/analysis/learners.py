@@ -151,7 +151,8 @@ def reading(found: dict[tuple[str, str], Cell]) -> list[str]:
         leader, tests = row_tests(row)
         above = [f"{LEARNERS[n]} (U={t.u:g}, Holm p{stats.format_p(p)})" for n, t, p in tests if p < ALPHA]
         level = [f"{LEARNERS[n]} (Holm p{stats.format_p(p)})" for n, t, p in tests if p >= ALPHA]
-        text = f"- **{world}**: {LEARNERS[leader]} has the highest median final score ({np.median(row[leader].final):.3g})"
+        best = float(np.median(row[leader].final))
+        text = f"- **{world}**: {LEARNERS[leader]} has the highest median final score ({best:.3g})"
         if above:
             text += "; it ends higher than " + ", ".join(above)
         if level:
