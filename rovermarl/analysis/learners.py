@@ -136,7 +136,7 @@ def report(results: Path) -> str:
     budgets = sorted({int(round(c.x[-1])) for c in found.values()})
     lines += ["", f"Budget per run: {', '.join(f'{b:,}' for b in budgets)} agent-steps (whole generations of each "
               "learner within `budget.agent_steps`). Figures: " +
-              ", ".join(f"[{w}](../{Path(results).as_posix()}/figures/learners_{w}.png)"
+              ", ".join(f"[{w}](../results/{Path(results).name}/figures/learners_{w}.png)"
                         for w in WORLDS if any(k[0] == w for k in found)) + "."]
     return "\n".join(lines) + "\n"
 
