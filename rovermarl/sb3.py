@@ -49,7 +49,6 @@ class VecEnv(_vec.VecEnv):
                  time_feature: bool = DEFAULTS["time_feature"], **overrides):
         self.env = e = VectorEnv(num_envs, setup, world, time_feature, **overrides)
         obs = gymnasium.spaces.Box(e.obs_low, e.obs_high, dtype=e.dtype)
-        self.render_mode = None
         super().__init__(e.num_envs * e.n_agents, obs, gymnasium.spaces.Box(-1.0, 1.0, (2,), dtype=e.dtype))
         self._actions = None
 
@@ -78,7 +77,8 @@ class VecEnv(_vec.VecEnv):
         pass
 
     def get_attr(self, attr_name, indices=None):
-        return [getattr(self.env, attr_name)] * len(self._indices(indices))
+        value = getattr(self.env, attr_name, None) if attr_name == "render_mode" else getattr(self.env, attr_name)
+        return [value] * len(self._indices(indices))
 
     def set_attr(self, attr_name, value, indices=None) -> None:
         setattr(self.env, attr_name, value)

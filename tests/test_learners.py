@@ -78,7 +78,8 @@ def test_docs_learners_is_generated_from_the_committed_results():
 
 
 def test_learner_cells_are_named_from_their_overrides_and_holm_adjusts():
-    from rovermarl.analysis.learners import classify, holm
+    from rovermarl.analysis.learners import classify
+    from rovermarl.analysis.stats import holm
     assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1")
     assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == ("obstacles",
                                                                                                       "ccea_dpp")

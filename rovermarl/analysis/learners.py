@@ -86,15 +86,6 @@ def cells(results: Path) -> dict[tuple[str, str], Cell]:
     return out
 
 
-def holm(p: list[float]) -> list[float]:
-    """Holm's step-down adjustment of p-values (same order)."""
-    order, running, out = sorted(range(len(p)), key=lambda i: p[i]), 0.0, [1.0] * len(p)
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (len(p) - rank) * p[i]))
-        out[i] = running
-    return out
-
-
 def row_tests(row: dict[str, Cell]) -> tuple[str, list[tuple[str, stats.Test, float]]]:
     """The row's leader (highest median final score, ties by the order of :data:`LEARNERS`) and its Mann-Whitney
     tests against every other learner of the row, each with its Holm-adjusted p."""
@@ -102,7 +93,7 @@ def row_tests(row: dict[str, Cell]) -> tuple[str, list[tuple[str, stats.Test, fl
     leader = max(names, key=lambda n: (float(np.median(row[n].final)), -names.index(n)))
     others = [n for n in names if n != leader]
     tests = [stats.mann_whitney(row[leader].final, row[n].final) for n in others]
-    return leader, list(zip(others, tests, holm([t.p for t in tests]), strict=True))
+    return leader, list(zip(others, tests, stats.holm([t.p for t in tests]), strict=True))
 
 
 def _steps(x: float) -> str:
