@@ -40,7 +40,7 @@ learner() {  # learner NAME: its overrides
         cces_homogeneous) echo "team=homogeneous" ;;
         ccea_dpp) echo "algorithm=ccea algorithm.reward=dpp" ;;
         cma) echo "algorithm=cma" ;;
-        ppo) echo "algorithm=ppo checkpoint.every=50" ;;
+        ppo) echo "algorithm=ppo checkpoint.every=25 parallel.chunk=25" ;;   # a checkpoint every ~6 min
         *) echo "$(basename "$0"): error: LEARNERS: no learner '$1'" >&2; exit 2 ;;
     esac
 }
