@@ -62,3 +62,32 @@ def test_ppo_budget_in_agent_steps_and_missing_extra_named(monkeypatch):
     validate(cfg)
     assert cfg.generations == 1250                                 # 256 envs x 15 steps x 4 rovers per iteration
     assert torch.get_num_threads() >= 1
+
+
+def test_a_ppo_job_killed_after_a_checkpoint_resumes_bit_identically(tmp_path):
+    """The CLI with budget.agent_steps: SIGINT after the first checkpoint, relaunch, the curves and held-out scores
+    equal an uninterrupted job's."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT, assert_same_curves, run_cli, start_until_checkpoint, sweep_curves
+    args = ("-m", *SMALL, "setup=solo", f"budget.agent_steps={16 * 15 * 4 * 8}", "seeds=1", "checkpoint.every=2",
+            "parallel=serial", "parallel.chunk=2")
+    sweep = tmp_path / "sweep"
+    argv = [sys.executable, "-W", "ignore", "-m", "rovermarl.train", *args, f"hydra.sweep.dir={sweep}"]
+    proc = start_until_checkpoint(argv, sweep)
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=120)
+    out = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    ref = run_cli(*args, f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=600)
+    assert ref.returncode == 0, ref.stderr[-2000:]
+    got = sweep_curves(sweep)
+    assert_same_curves(got, sweep_curves(tmp_path / "ref"))
+    assert next(iter(got.values()))["score"].shape == (9,)                  # 8 iterations of 16 x 15 x 4
+    held = [json.loads(p.read_text())["heldout_score"] for d in (sweep, tmp_path / "ref")
+            for p in d.glob("*/summary.json")]
+    assert len(held) == 2 and held[0] == held[1]
