@@ -2,7 +2,7 @@
 second of process CPU time in each world (a short run, after its compile), and from it the CPU time of one run and
 of every cell at the study's budget. Prints one JSON object; PPO only where torch and stable-baselines3 import.
 
-    python benchmarks/learners.py [--worlds solo,duo,...] [--agent-steps 19200000] [--seeds 8] [--sample 500000]
+    python benchmarks/learners.py [--worlds solo,duo,...] [--learners cces_k1,...,ppo] [--agent-steps 19200000] [--seeds 8] [--sample 500000]
 """
 
 from __future__ import annotations
@@ -43,12 +43,14 @@ def main() -> None:
     p.add_argument("--worlds", default=",".join(WORLDS))
     p.add_argument("--agent-steps", type=int, default=19_200_000)
     p.add_argument("--seeds", type=int, default=8)
+    p.add_argument("--learners", default=",".join(LEARNERS))
     p.add_argument("--sample", type=int, default=500_000, help="agent-steps measured per learner and world")
     a = p.parse_args()
     rl = all(importlib.util.find_spec(m) for m in ("torch", "stable_baselines3"))
     out = {"agent_steps": a.agent_steps, "seeds": a.seeds, "cells": {}, "skipped": [] if rl else ["ppo: no [rl]"]}
     for world in a.worlds.split(","):
-        for learner, overrides in LEARNERS.items():
+        for learner in a.learners.split(","):
+            overrides = LEARNERS[learner]
             if learner == "ppo" and not rl:
                 continue
             try:
