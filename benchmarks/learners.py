@@ -2,7 +2,8 @@
 second of process CPU time in each world (a short run, after its compile), and from it the CPU time of one run and
 of every cell at the study's budget. Prints one JSON object; PPO only where torch and stable-baselines3 import.
 
-    python benchmarks/learners.py [--worlds solo,duo,...] [--learners cces_k1,...,ppo] [--agent-steps 19200000] [--seeds 8] [--sample 500000]
+    python benchmarks/learners.py [--worlds solo,duo,...] [--learners cces_k1,...,ppo] [--agent-steps 19200000]
+        [--seeds 8] [--sample 500000]
 """
 
 from __future__ import annotations

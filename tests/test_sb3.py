@@ -19,7 +19,7 @@ from tests.conftest import make_cfg  # noqa: E402
 
 pytestmark = pytest.mark.slow                    # .ci/run's slow part, after pip install -e ".[rl]"
 
-SMALL = ("algorithm=ppo", "algorithm.num_envs=16", "algorithm.batch_size=240", "algorithm.n_epochs=2", "record=off")
+SMALL = ("algorithm=ppo", "+algorithm.num_envs=16", "+algorithm.batch_size=240", "+algorithm.n_epochs=2", "record=off")
 
 
 def test_the_vecenv_view_flattens_agents_and_keeps_the_defaults():
