@@ -11,7 +11,8 @@
 # Resumable, also across machines and sessions: a job whose compact files are in RESULTS is skipped, one whose runs are
 # in OUT resumes there from their checkpoints. Commit RESULTS between sessions and the study goes on where it stopped.
 # Usage: [AGENT_STEPS=N (default 19200000)] [SEEDS=S (default 8)] [OUT=DIR] [RESULTS=DIR] [WORLDS="solo ..."]
-#        [LEARNERS="cces_k1 ..."] launchers/learners.sh [HYDRA_OVERRIDE ...]
+#        [LEARNERS="cces_k1 ..."] [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)]
+#        launchers/learners.sh [HYDRA_OVERRIDE ...]
 # Only the committed study's budget (AGENT_STEPS=19200000 SEEDS=8) refreshes results/learners; any other writes to
 # outputs/results/learners_g<AGENT_STEPS>_s<S>[,...] (results_dir in _sweep.sh).
 AGENT_STEPS="${AGENT_STEPS:-19200000}"
@@ -19,6 +20,7 @@ SEEDS="${SEEDS:-8}"
 GENERATIONS="$AGENT_STEPS"                     # what results_dir compares with the committed study's budget
 OUT="${OUT:-outputs/learners}"
 WORLDS="${WORLDS:-solo duo trio obstacles random_pois moving_pois}"
+PARALLEL="${PARALLEL:-parallel=serial}"        # how a job's seeds run: one after another, or on Ray
 LEARNERS="${LEARNERS:-cces_k1 cces_adaptive cces_homogeneous ccea_dpp cma ppo}"
 # shellcheck source=launchers/_sweep.sh
 source "$(dirname "$0")/_sweep.sh"
@@ -68,7 +70,8 @@ for w in $WORLDS; do
             echo "$(basename "$0"): random_pois/ccea_dpp: the credits need each episode's POIs: not applicable" >&2
             continue
         fi
-        overrides=("${wo[@]}" "${lo[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "parallel=serial")
+        read -ra par <<< "$PARALLEL"
+        overrides=("${wo[@]}" "${lo[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "${par[@]}")
         name="$(job_name "${overrides[@]}" "seeds=$SEEDS")"
         if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
             echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
