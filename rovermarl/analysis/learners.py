@@ -165,7 +165,7 @@ def figures(results: Path, formats=("png",)) -> list[Path]:
         ax = fig.add_subplot(1, 1, 1)
         for i, (learner, c) in enumerate(row.items()):
             q1, med, q3 = np.quantile(c.curves, [0.25, 0.5, 0.75], axis=0)
-            x = np.maximum(c.x, 1)
+            x = np.maximum(c.x, c.per_generation)                     # generation 0 drawn at one generation
             ax.plot(x, med, color=f"C{i}", label=f"{LEARNERS[learner]} (n={len(c.final)})", lw=1.4)
             ax.fill_between(x, q1, q3, color=f"C{i}", alpha=0.2, lw=0)
         ax.set_xscale("log")
