@@ -91,3 +91,16 @@ def test_a_ppo_job_killed_after_a_checkpoint_resumes_bit_identically(tmp_path):
     held = [json.loads(p.read_text())["heldout_score"] for d in (sweep, tmp_path / "ref")
             for p in d.glob("*/summary.json")]
     assert len(held) == 2 and held[0] == held[1]
+
+
+def test_the_sb3_example_runs_and_reports_both_returns():
+    import json
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT
+    out = subprocess.run([sys.executable, "-W", "ignore", "examples/sb3_ppo/sb3_ppo.py", "--envs", "8",
+                          "--iterations", "2"], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["agent_steps"] == 2 * 15 * 8 * 4 and got["random_mean_team_return"] >= 0
