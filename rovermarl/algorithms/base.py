@@ -236,6 +236,13 @@ class Algorithm:
         time estimate and the comparisons at equal evaluations assume. Override it when it is not 1."""
         return 1.0
 
+    def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
+        """Agent-steps (one rover, one time step) one generation costs: the budget unit every learner shares
+        (``budget.agent_steps``). A team evaluation is ``episodes x steps x n_rovers`` agent-steps (960 for 4 rovers
+        at 16 x 15); a learner that steps the environment itself (PPO) overrides this."""
+        w = self.world
+        return int(round(self.evaluations_per_generation(fresh_ic) * w.episodes * w.steps * w.n_rovers))
+
     # ---- to implement ----------------------------------------------------------------------------------------
     def _init(self, streams: RunStreams, evaluate: Evaluator):
         raise NotImplementedError

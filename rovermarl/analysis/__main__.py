@@ -13,6 +13,8 @@
   per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
   (:mod:`rovermarl.analysis.radius`).
+- ``learners RESULTS_DIR [--doc docs/LEARNERS.md]``: the learners study's section of docs/LEARNERS.md and its
+  figures (:mod:`rovermarl.analysis.learners`).
 - ``budget-geometry BUDGET_DIR GEOMETRY_DIR``: the budget and geometry section of docs/REPRODUCTION.md.
 - ``readings {export SWEEP_DIR RESULTS_DIR, lifting RESULTS_DIR, report RESULTS_DIR}``: the readings study
   (see :mod:`rovermarl.analysis.readings`).
@@ -76,6 +78,9 @@ def parser() -> argparse.ArgumentParser:
     v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
     rd = sub.add_parser("radius", help="the pre-registered radius study: the report section")
     rd.add_argument("results", type=Path, help="results/radius")
+    ln = sub.add_parser("learners", help="the learners study: docs/LEARNERS.md's section and one figure per world")
+    ln.add_argument("results", type=Path, help="results/learners")
+    ln.add_argument("--doc", type=Path, default=Path("docs/LEARNERS.md"), help="the doc whose section is replaced")
     g = sub.add_parser("budget-geometry", help="the duo question along budget and geometry: the report section")
     g.add_argument("budget", type=Path, help="results/budget")
     g.add_argument("geometry", type=Path, help="results/geometry")
@@ -108,6 +113,9 @@ def main(argv=None) -> None:
         elif args.command == "radius":
             from rovermarl.analysis.radius import report as radius_report
             print(radius_report(args.results), end="")
+        elif args.command == "learners":
+            from rovermarl.analysis.learners import write
+            write(args.results, args.doc)
         elif args.command == "verify":
             _verify(args.results)
         elif args.command == "budget-geometry":

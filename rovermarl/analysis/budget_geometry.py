@@ -78,10 +78,8 @@ def budget_rise(budget: Path, at: int = 200_000) -> list[tuple[str, int, int, in
         before, after = curves.at(np.array([at]))[:, 0], curves.at(np.array([curves.generations]))[:, 0]
         p = float(scipy_stats.wilcoxon(after, before).pvalue) if (after != before).any() else 1.0
         rows.append([j["method"], int((after > before).sum()), int((after < before).sum()), len(after), p])
-    order, running = sorted(range(len(rows)), key=lambda i: rows[i][4]), 0.0
-    for rank, i in enumerate(order):                     # Holm's step-down adjustment
-        running = max(running, min(1.0, (len(rows) - rank) * rows[i][4]))
-        rows[i][4] = running
+    for row, p in zip(rows, stats.holm([r[4] for r in rows]), strict=True):
+        row[4] = p
     return [tuple(r) for r in rows]
 
 

@@ -60,8 +60,9 @@ def compute_of(job: Job) -> dict:
             "team_evals": sum(x["team_evals"] for x in launches)}
 
 
-def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) -> dict:
-    """Write one job's compact results into ``out``; returns its summary."""
+def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, trust: bool = False) -> dict:
+    """Write one job's compact results into ``out``; returns its summary. A world plug-in's job only with ``trust``
+    (its world is built to size the run files)."""
     runs = sorted(job.runs, key=lambda r: r.seed)
     lengths = {len(r.score) for r in runs}
     if len(lengths) != 1:
@@ -73,7 +74,7 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS) 
               "step_generation": curves.step_generation, "step_score": curves.step_score}
     if job.bandit:
         arrays["probs"] = np.stack([r.probs[np.minimum(grid, len(r.probs) - 1)] for r in runs]).astype(np.float32)
-    world = job.world()
+    world = job.world(trust)
     if world is None:
         raise ResultsError(f"{job.path}: cannot build the world from its config")
     episodes = world.episodes
@@ -152,7 +153,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     with staged(out) as stage:
         for job in jobs:
             label = named[job.name]
-            summary = export_job(job, label, stage / job.name, grid_points)
+            summary = export_job(job, label, stage / job.name, grid_points, trust)
             totals["jobs"][job.name] = summary["compute"]
             log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
         for key in ("team_evals", "agent_steps", "wall_time_s"):          # every job of out: exports add up
@@ -278,7 +279,7 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
                                f"{int(generation[i])}")
     mutated = [m for m, _, _ in replayed]
     final_count = count[-1]                                              # (E, P): pick an episode that ends best
-    world = job.world()
+    world = job.world(trust)
     returns = (final_count >= np.asarray(world.coupling)) @ np.asarray(world.value)
     best_eps = np.flatnonzero(returns == returns.max())
     changes = [(np.diff(count[:, e], axis=0) != 0).any(axis=1).sum() for e in best_eps]

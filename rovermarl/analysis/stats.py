@@ -103,6 +103,16 @@ def mann_whitney(x, y) -> Test:
     return Test(float(res.statistic), float(res.pvalue), float(res.statistic) / (len(x) * len(y)))
 
 
+def holm(p) -> list[float]:
+    """Holm's step-down adjustment of the p-values ``p`` of one family of tests (same order)."""
+    p = [float(x) for x in p]
+    order, running, out = sorted(range(len(p)), key=lambda i: p[i]), 0.0, [1.0] * len(p)
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (len(p) - rank) * p[i]))
+        out[i] = running
+    return out
+
+
 def format_count(est: Estimate, n: int) -> str:
     """A Wilson estimate of ``n`` runs as ``k/n [low, high]``."""
     return f"{round(est.value * n)}/{n} [{est.low:.2f}, {est.high:.2f}]"

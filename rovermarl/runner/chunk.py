@@ -241,7 +241,11 @@ def heldout_score(p: Parts, seed: int, team: np.ndarray) -> float:
 
 
 def to_plain(cfg: DictConfig) -> dict:
-    """A composed config as plain containers (what crosses to workers), without Hydra's own node."""
+    """A composed config as plain containers (what crosses to workers), without Hydra's own node, and without the
+    ``budget`` section while it sets nothing (``budget.agent_steps: null``: ``generations`` is the budget), so a
+    config reads as it did before the section existed."""
     out = OmegaConf.to_container(cfg, resolve=True)
     out.pop("hydra", None)
+    if isinstance(out.get("budget"), dict) and out["budget"].get("agent_steps") is None:
+        del out["budget"]
     return out

@@ -123,6 +123,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         if _current(summary, seeds, cfg.levels):
             return summary                                                 # else stale: rebuilt below
 
+    _saved_generations(job_dir / ".hydra" / "config.yaml", cfg.generations)
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         job_dir.mkdir(parents=True, exist_ok=True)
         with atomic_open(job_dir / "config.yaml", "w") as f:
@@ -162,12 +163,25 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
                         heldout=heldout)
     summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
+    summary["agent_steps_per_generation"] = built.algorithm.agent_steps_per_generation(built.evaluation["fresh_ic"])
     write_json(summary_path, summary)
     close_launch(job_dir, {"started_at": started, "finished_at": time.time(), "wall_time_s": wall,
                            "team_evals": summary["team_evals"], "runs_advanced": len(todo)})
     log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
              summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
     return summary
+
+
+def _saved_generations(path: Path, generations: int) -> None:
+    """Hydra saved the job's config before ``budget.agent_steps`` set its ``generations``: the saved config says the
+    generations the job runs (as if given on the command line), so every reader of the job dir sees them."""
+    if not path.is_file():
+        return
+    saved = OmegaConf.load(path)
+    if saved.get("generations") != generations:
+        saved.generations = generations
+        with atomic_open(path, "w") as f:
+            f.write(OmegaConf.to_yaml(saved))
 
 
 def _record(cfg, job_dir: Path, seed: int, key: str, series, name: str) -> RunRecord:

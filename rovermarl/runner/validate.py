@@ -6,7 +6,7 @@ import re
 from functools import cache
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf, read_write
 from omegaconf.errors import InterpolationKeyError
 
 from rovermarl import errors
@@ -75,6 +75,9 @@ def validate(cfg: DictConfig) -> None:
                 else "missing; the config refers to it")
         raise errors.ConfigError(key, None, what) from None
     built = parts(plain)                               # builds world and algorithm once; the job reuses them
+    if apply_budget(cfg, built.algorithm, built.evaluation["fresh_ic"]):
+        plain = to_plain(cfg)
+        built = parts(plain)
     built.algorithm.check_series()
     try:
         built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.get("ic_shards", 1) == 1)
@@ -82,6 +85,28 @@ def validate(cfg: DictConfig) -> None:
         raise e.under("algorithm") from None
     budget.check(plain, series_bytes(built.algorithm.series),
                  built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
+
+
+def apply_budget(cfg: DictConfig, algorithm, fresh_ic: bool) -> bool:
+    """Set ``generations`` from ``budget.agent_steps`` when it is given (the one home of that rule): as many whole
+    generations as fit, at :meth:`Algorithm.agent_steps_per_generation
+    <rovermarl.algorithms.base.Algorithm.agent_steps_per_generation>` each (19,200,000 agent-steps = 20,000
+    generations of CC-(1+1)-ES with 4 rovers, 1,818 of the CCEA's 11 team evaluations). Returns whether it did."""
+    node = cfg.get("budget")
+    if node is None:
+        return False
+    _keys("budget", node, {"agent_steps"})
+    steps = node.get("agent_steps")
+    if steps is None:
+        return False
+    steps = errors.integer("budget.agent_steps", steps, 1)
+    per = algorithm.agent_steps_per_generation(fresh_ic)
+    if steps < per:
+        raise errors.ConfigError("budget.agent_steps", steps, f"must be at least one generation ({per} agent-steps "
+                                 f"for {type(algorithm).__name__} in this world)")
+    with read_write(cfg):
+        cfg.generations = steps // per
+    return True
 
 
 def series_bytes(series) -> int:

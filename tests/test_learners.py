@@ -1,0 +1,87 @@
+"""The learners study's parts: one budget unit (agent-steps) for every learner, and CMA-ES over the whole team
+(sep-CMA) resuming bit-identically."""
+
+import numpy as np
+import pytest
+
+from rovermarl.config import compose_config
+from rovermarl.env import make_world
+from rovermarl.errors import ConfigError
+from rovermarl.runner.chunk import advance, parts, to_plain
+from rovermarl.runner.identity import config_hash
+from rovermarl.runner.validate import validate
+from tests.conftest import make_cfg
+
+
+@pytest.mark.parametrize("algorithm,generations", [("cc11es", 20000), ("ccea", 1818), ("cma", 740)])
+def test_agent_steps_set_generations_for_every_learner(algorithm, generations):
+    cfg = compose_config(f"algorithm={algorithm}", "budget.agent_steps=19200000")
+    validate(cfg)
+    assert cfg.generations == generations
+    algo = parts(to_plain(cfg)).algorithm
+    assert algo.agent_steps_per_generation() == 960 * algo.evaluations_per_generation()
+
+
+def test_no_agent_steps_leaves_generations_and_the_run_identity_as_they_were():
+    cfg = compose_config("setup=duo", "generations=123")
+    before = config_hash(to_plain(cfg))
+    validate(cfg)
+    assert cfg.generations == 123 and config_hash(to_plain(cfg)) == before
+    assert "budget" not in to_plain(cfg)                  # null: the config reads as before the section existed
+
+
+def test_a_budget_under_one_generation_is_refused_in_one_line():
+    cfg = compose_config("budget.agent_steps=100")
+    with pytest.raises(ConfigError, match="budget.agent_steps"):
+        validate(cfg)
+
+
+def test_cma_resumes_bit_identically_and_scores_its_best_team():
+    plain = to_plain(make_cfg("algorithm=cma", "setup=duo", "generations=12", "record=off"))
+    whole = advance(plain, 2, None, 12)
+    first = advance(plain, 2, None, 5)
+    rest = advance(plain, 2, first["state"], 12)
+    assert np.array_equal(np.concatenate([first["score"], rest["score"]]), whole["score"])
+    for name in ("team_evals", "sigma"):
+        assert np.array_equal(np.concatenate([first["series"][name], rest["series"][name]]), whole["series"][name])
+    assert whole["evaluations"] == 1 + 27 * 12 and whole["series"]["team_evals"][-1] == 1 + 27 * 12
+    world = make_world("duo")
+    assert world.evaluate(np.asarray(whole["genomes"]), world.run_ic(2)) == whole["score"][-1]
+    assert np.all(np.diff(whole["score"]) >= 0)           # the best sample so far
+
+
+def test_cma_learns_solo():
+    plain = to_plain(make_cfg("algorithm=cma", "setup=solo", "generations=60", "record=off"))
+    out = advance(plain, 0, None, 60)
+    assert out["score"][-1] > out["initial_score"] + 0.5, (out["initial_score"], out["score"][-1])
+
+
+def test_a_missing_rl_extra_is_named_in_one_line():
+    import importlib.util
+    if importlib.util.find_spec("torch") is not None:
+        pytest.skip("torch is installed: the [rl] path runs in tests/test_sb3.py")
+    with pytest.raises(ConfigError, match=r'pip install -e "\.\[rl\]"') as e:
+        validate(compose_config("algorithm=ppo"))
+    assert "\n" not in str(e.value)
+
+
+def test_docs_learners_is_generated_from_the_committed_results():
+    from pathlib import Path
+
+    from rovermarl.analysis import learners
+    root = Path(__file__).resolve().parents[1]
+    doc = (root / "docs" / "LEARNERS.md").read_text()
+    assert learners.block(doc) == learners.report(root / "results" / "learners"), \
+        "docs/LEARNERS.md is stale: python -m rovermarl.analysis learners results/learners"
+
+
+def test_learner_cells_are_named_from_their_overrides_and_holm_adjusts():
+    from rovermarl.analysis.learners import classify
+    from rovermarl.analysis.stats import holm
+    assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1")
+    assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == ("obstacles",
+                                                                                                      "ccea_dpp")
+    assert classify("budget.agent_steps=5,setup=duo,team=homogeneous") == ("duo", "cces_homogeneous")
+    assert classify("algorithm.reward=global,algorithm=ccea,budget.agent_steps=5,setup=duo") is None
+    assert classify("k=1,setup=solo") is None                           # not a job of the study (no agent-steps)
+    assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
