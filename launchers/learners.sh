@@ -62,8 +62,8 @@ for w in $WORLDS; do
             echo "$(basename "$0"): $w/ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
             continue
         fi
-        if [ "$l" = ccea_dpp ] && [ "$w" = random_pois ]; then   # D++ re-scores trajectories without their POIs
-            echo "$(basename "$0"): random_pois/ccea_dpp: the credits need each episode's POIs: not applicable" >&2
+        if [ "$l" = ccea_dpp ] && { [ "$w" = random_pois ] || [ "$w" = moving_pois ]; }; then   # D++ re-scores
+            echo "$(basename "$0"): $w/ccea_dpp: the credits need each episode's POIs: not applicable" >&2   # without them
             continue
         fi
         read -ra par <<< "$PARALLEL"
