@@ -13,8 +13,8 @@ from rovermarl.record import lock
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, assert_same_curves, make_cfg, run_cli, sweep_curves
 
-ARGS = ("-m", "k=1,2", "setup=duo", "generations=800", "seeds=2", "parallel=serial", "parallel.chunk=100",
-        "checkpoint.every=100", "~hydra.callbacks.plot")
+ARGS = ("-m", "k=1,2", "setup=duo", "generations=6000", "seeds=2", "parallel=serial", "parallel.chunk=500",
+        "checkpoint.every=500", "~hydra.callbacks.plot")   # long enough that the first is still running (compiled loop)
 
 
 def test_two_launches_on_one_sweep_dir_one_refuses_the_sweep_completes(tmp_path):

@@ -62,7 +62,10 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     env, g = plain["env"], int(plain["generations"])
     n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
     p = len(plain["setup"]["coupling"])
-    d = World.from_config(plain, trust=True).obs_dim                 # the world's observation blocks (composed)
+    try:
+        d = World.from_config(plain, trust=True).obs_dim             # the world's observation blocks (composed)
+    except MemoryError:                  # too large to build at all (its (N, D) input rows): the paper's blocks
+        d = 3 * p + 2 * n
     genome = n_params(d, h)
     seeds = int(plain["seeds"])
     memory = {
