@@ -60,12 +60,8 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     ``per_generation`` its team evaluations per generation (:meth:`Algorithm.evaluations_per_generation
     <rovermarl.algorithms.Algorithm.evaluations_per_generation>`)."""
     env, g = plain["env"], int(plain["generations"])
-    n, e, t, h = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"]), int(plain["policy"]["hidden"])
-    p = len(plain["setup"]["coupling"])
-    try:
-        d = World.from_config(plain, trust=True).obs_dim             # the world's observation blocks (composed)
-    except MemoryError:                  # too large to build at all (its (N, D) input rows): the paper's blocks
-        d = 3 * p + 2 * n
+    n, e, h = int(env["n_rovers"]), int(env["episodes"]), int(plain["policy"]["hidden"])
+    d = World.from_config(plain, trust=True).obs_dim                 # the world's observation blocks (composed)
     genome = n_params(d, h)
     seeds = int(plain["seeds"])
     memory = {
@@ -73,12 +69,36 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
         "team": 3.0 * n * genome * 8,                                          # parents, children, the world's copy
         "episodes": 1.0 * e * n * (d + h + 8) * 8,                             # observations, hidden units, state
     }
-    ns = NS_BASE + NS_PER_MAC * d * h + NS_PER_TARGET * (p + n)
-    evaluation_s = e * t * n * ns * 1e-9
+    evaluation_s = _evaluation_s(plain, d)
     par = plain.get("parallel") or {}
     cpus = 1 if par.get("backend") == "serial" else int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count())
     job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
+
+
+def _evaluation_s(plain: dict, d: int) -> float:
+    """Seconds of one team evaluation here, with observations of ``d`` rows."""
+    env, h, p = plain["env"], int(plain["policy"]["hidden"]), len(plain["setup"]["coupling"])
+    n, e, t = int(env["n_rovers"]), int(env["episodes"]), int(env["steps"])
+    return e * t * n * (NS_BASE + NS_PER_MAC * d * h + NS_PER_TARGET * (p + n)) * 1e-9
+
+
+def precheck(plain: dict) -> None:
+    """The evaluation-time limit of :func:`check` with the paper's observation (3 rows per POI, 2 per rover; a
+    plug-in's only adds rows), before the world is built: a world too large to build at all (its (N, D) input rows
+    for env.n_rovers=100000) is refused in the same one line."""
+    try:
+        seconds = _evaluation_s(plain, 3 * len(plain["setup"]["coupling"]) + 2 * int(plain["env"]["n_rovers"]))
+    except (KeyError, TypeError, ValueError, ArithmeticError):   # malformed: building the world says what is wrong
+        return
+    _limit(plain, seconds)
+
+
+def _limit(plain: dict, evaluation_s: float) -> None:
+    if evaluation_s > EVALUATION_LIMIT_S:
+        key = _largest(plain, ("env.steps", "env.episodes", "policy.hidden", "env.n_rovers"))
+        raise errors.ConfigError(key, _get(plain, key), f"one team evaluation would take about "
+                                 f"{duration(evaluation_s)} here (limit {duration(EVALUATION_LIMIT_S)})")
 
 
 def run_bytes(plain: dict, series_bytes: int = 32) -> float:
@@ -100,10 +120,7 @@ def check(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -> E
         raise errors.ConfigError("mutation.sigma", sigma, f"must be at most {SIGMA_LIMIT:g}: larger Gaussian "
                                  "mutations make genomes non-finite")
     est = estimate(plain, series_bytes, per_generation)
-    if est.evaluation_s > EVALUATION_LIMIT_S:
-        key = _largest(plain, ("env.steps", "env.episodes", "policy.hidden", "env.n_rovers"))
-        raise errors.ConfigError(key, _get(plain, key), f"one team evaluation would take about "
-                                 f"{duration(est.evaluation_s)} here (limit {duration(EVALUATION_LIMIT_S)})")
+    _limit(plain, est.evaluation_s)
     avail = available_memory()
     if run_bytes(plain, series_bytes) > avail / 4:                 # one run's record: never split
         raise errors.ConfigError("generations", _get(plain, "generations"), f"one run needs about "

@@ -74,6 +74,7 @@ def validate(cfg: DictConfig) -> None:
         what = ("must be a config with a _target_ (pick an option of the group)" if key in allowed
                 else "missing; the config refers to it")
         raise errors.ConfigError(key, None, what) from None
+    budget.precheck(plain)                             # a world too large to build is refused first
     built = parts(plain)                               # builds world and algorithm once; the job reuses them
     if apply_budget(cfg, built.algorithm, built.evaluation["fresh_ic"]):
         plain = to_plain(cfg)
