@@ -85,7 +85,7 @@ def old_evaluate(world):
     """4c4ae3c's ``World.evaluate`` (its checks, its kernel ``kernel_4c4ae3c.rollout``, its score; float64), and its
     bare kernel call."""
     import kernel_4c4ae3c as old  # same folder
-    consts = (world.poi_xy, world._type, world._coupling, world._value, world.steps, world.hidden,
+    consts = (world.poi_xy, world._type, world._coupling, world._value, world.steps, world.policy.hidden,
               float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
     no = (np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)), np.empty((0, 1, 2)))
 

@@ -143,7 +143,7 @@ def inputs(world, seed: int = 0, dtype=np.float64):
     obs = np.empty(d * ne)
     sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs)
     genomes = rng.uniform(-2, 2, (n, world.n_params))
-    return genomes.astype(dtype), obs.astype(dtype), input_rows(n, world._type), n_ep, world.hidden, d, ne
+    return genomes.astype(dtype), obs.astype(dtype), input_rows(n, world._type), n_ep, world.policy.hidden, d, ne
 
 
 def main() -> None:

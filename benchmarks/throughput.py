@@ -55,8 +55,8 @@ def kernel_inputs(world, seed: int = 0):
     """Arguments of ``rollout`` without its outputs: a random team, the world's starts and the world's arrays."""
     xy0, h0, _ = world.initial_conditions(seed=seed)
     genomes = np.random.default_rng(seed).uniform(-2, 2, (world.n_rovers, world.n_params))
-    return (genomes, xy0, h0, world.poi_xy, world._type, world._coupling, world._value, world.steps, world.hidden,
-            float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
+    return (genomes, xy0, h0, world.poi_xy, world._type, world._coupling, world._value, world.steps,
+            world.policy.hidden, float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
 
 
 def as_float32(args):
@@ -214,7 +214,7 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
     args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
-            input_rows(n, world._type), n_ep, world.hidden, np.empty((world.hidden + 2) * n_ep),
+            input_rows(n, world._type), n_ep, world.policy.hidden, np.empty((world.policy.hidden + 2) * n_ep),
             np.empty(d, dtype=np.int64), a0, a1, float(world.v_max), world.w_max)
     out = {}
     for which, name in enumerate(("sense", "act", "move")):
@@ -222,7 +222,7 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
         best = min(_timed(lambda w=which: _stage_loop(w, reps, *args)) for _ in range(repeats))
         out[name] = round(best / (reps * ne) * 1e9, 2)
     rows = obs.reshape(d, n, n_ep).any(axis=2).sum(axis=0)                # non-zero input rows per rover
-    fma = float(np.mean(rows)) * world.hidden + 2 * world.hidden
+    fma = float(np.mean(rows)) * world.policy.hidden + 2 * world.policy.hidden
     peak = fma_peak(repeats)
     return {"stages_ns_per_agent_step": out, "mlp_fma_per_agent_step": round(fma, 1),
             "act_fma_per_ns": round(fma / out["act"], 2), "fma_per_ns_peak": round(peak, 2),

@@ -304,7 +304,7 @@ def genome_policy(world: World, genomes: np.ndarray):
     def policy(observations: dict) -> dict:
         obs = np.stack([observations[a] for a in agents])[None].astype(world.dtype)   # (1, N, D)
         out = np.empty((1, world.n_rovers, 2), world.dtype)
-        kernel.act(genomes, np.ascontiguousarray(obs), world.hidden, out)
+        kernel.act(genomes, np.ascontiguousarray(obs), world.policy.hidden, out)
         return {a: out[0, i] for i, a in enumerate(agents)}
 
     return policy

@@ -9,7 +9,12 @@ so ``n_params = D*H + H + 2*H + 2`` (658 for D=38, H=16).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
+
+from rovermarl import errors
+from rovermarl.resources import packaged
 
 N_OUT = 2
 
@@ -38,3 +43,19 @@ def forward(genome: np.ndarray, obs: np.ndarray, hidden: int) -> np.ndarray:
     """Reference (numpy) policy: genome (P,), obs (..., D) -> actions (..., 2) in [-1, 1]."""
     w1, b1, w2, b2 = unflatten(genome, obs.shape[-1], hidden)
     return np.tanh(np.tanh(obs @ w1 + b1) @ w2 + b2)
+
+
+@dataclass(frozen=True)
+class MLP:
+    """The policy's configuration (the ``policy`` group, ``conf/policy/mlp.yaml``: the one home of its default):
+    ``hidden`` H units. A world is built with one (``World.policy``), since its kernel runs the policy. The initial
+    genome range (``policy.init_low``, ``policy.init_high``) belongs to the learners, which read it from the config."""
+
+    hidden: int = packaged("policy/mlp.yaml")["hidden"]
+
+    def __post_init__(self):
+        errors.integer("policy.hidden", self.hidden, 1)
+
+    def n_params(self, obs_dim: int) -> int:
+        """Genome length for ``obs_dim`` inputs (658 for 38 and 16 hidden units)."""
+        return n_params(obs_dim, self.hidden)

@@ -151,7 +151,7 @@ class PPO(Algorithm):
                        "clip_range": errors.number("clip_range", clip_range, 0, lo_open=True),
                        "ent_coef": errors.number("ent_coef", ent_coef), "vf_coef": errors.number("vf_coef", vf_coef),
                        "max_grad_norm": errors.number("max_grad_norm", max_grad_norm, 0, lo_open=True)}
-        self.policy_kwargs = {"net_arch": {"pi": [world.hidden], "vf": [int(h) for h in value_hidden]},
+        self.policy_kwargs = {"net_arch": {"pi": [world.policy.hidden], "vf": [int(h) for h in value_hidden]},
                               "activation_fn": torch.nn.Tanh,
                               "log_std_init": errors.number("log_std_init", log_std_init)}
 

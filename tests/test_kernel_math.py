@@ -173,8 +173,8 @@ def test_finite_tanh_and_act_give_the_general_bits():
     acts = [[np.empty(n * e), np.empty(n * e)] for _ in range(2)]
     every = np.tile(np.arange(d), (n, 1))
     for flag, (a0, a1) in zip((False, True), acts, strict=True):
-        stages.act_flat(genomes, obs, every, e, world.hidden, np.empty((world.hidden + 2) * e), np.empty(d, np.int64),
-                        a0, a1, flag)
+        h = world.policy.hidden
+        stages.act_flat(genomes, obs, every, e, h, np.empty((h + 2) * e), np.empty(d, np.int64), a0, a1, flag)
     assert same_bits(acts[0][0], acts[1][0]) and same_bits(acts[0][1], acts[1][1])
     r = float(world.sensor_range)
     assert checks.mlp_finite(genomes, world._type, r)
@@ -233,7 +233,7 @@ def stepwise(world, genomes, ic):
     traj_xy, traj_heading = [xy.copy()], [heading.copy()]
     for _ in range(world.steps):
         kernel.sense(xy, heading, world.poi_xy, world._type, world.sensor_range, obs)
-        kernel.act(genomes, obs, world.hidden, actions)
+        kernel.act(genomes, obs, world.policy.hidden, actions)
         kernel.move(xy, heading, actions, world.v_max, world.w_max)
         traj_xy.append(xy.copy())
         traj_heading.append(heading.copy())
@@ -272,11 +272,11 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     np.testing.assert_allclose(obs, world.observe(xy, heading), rtol=0, atol=1e-14)   # libm twin: a few ulp
     genomes = np.random.default_rng(1).uniform(-2, 2, (n, world.n_params))
     actions = np.empty((e, n, 2))
-    kernel.act(genomes, obs, world.hidden, actions)
+    kernel.act(genomes, obs, world.policy.hidden, actions)
     a0, a1 = np.empty(n * e), np.empty(n * e)
     cand = checks.input_rows(n, world._type)                         # as the rollout: no structural zero rows
-    stages.act_flat(genomes, flat, cand, e, world.hidden, np.empty((world.hidden + 2) * e), np.empty(d, np.int64),
-                    a0, a1)
+    h = world.policy.hidden
+    stages.act_flat(genomes, flat, cand, e, h, np.empty((h + 2) * e), np.empty(d, np.int64), a0, a1)
     assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
     assert (cand == -1).sum() == n * (2 + (world._type == 0).sum())   # own slot and type-0 rows left out
 

@@ -100,7 +100,7 @@ def test_a_policy_that_reads_the_solo_type_turns_only_under_sign(poi_type, want)
     # read 0 (coupling), a hard turn when they read -1 (sign), so it misses POI 0.
     world = make_world("solo", poi_type=poi_type)
     g = constant_team(world, [1.0, 1.0, 1.0, 1.0], [0.0] * 4)
-    h = world.hidden
+    h = world.policy.hidden
     g[0, (3 * 1 + 2) * h + 0] = 5.0                         # W1[type of POI 1, hidden 0]
     g[0, world.obs_dim * h + h + 2 * 0 + 1] = 3.0           # W2[hidden 0, a1]
     ic = (np.array([[(-0.5, 0.0), FAR, FAR, FAR]]), np.array([[0.0, np.pi, np.pi, np.pi]]))   # ends at x = 14.5

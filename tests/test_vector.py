@@ -28,7 +28,7 @@ def play(env, genomes, ic):
     world = env.world
     for t in range(world.steps):
         act = np.empty((env.num_envs, env.n_agents, 2), world.dtype)
-        kernel.act(genomes.astype(world.dtype), obs[..., :world.obs_dim].copy(), world.hidden, act)
+        kernel.act(genomes.astype(world.dtype), obs[..., :world.obs_dim].copy(), world.policy.hidden, act)
         obs, rew, term, trunc, infos = env.step(act)
         assert (rew == rew[:, :1]).all() and not trunc.any() and term.all() == (t == world.steps - 1)
         total += rew[:, 0]

@@ -27,7 +27,8 @@ def test_a_plugins_extra_sensor_rows_change_the_policys_actions():
     assert world.obs_dim == 46 and all(np.isin(np.arange(38, 46), r).all() for r in world.kernel.rows)   # read
     team = np.random.default_rng(1).uniform(-2, 2, (4, world.n_params))
     other = team.copy()
-    other[:, 38 * world.hidden:46 * world.hidden] += 3.0                    # W1's rows of the obstacle block
+    h = world.policy.hidden
+    other[:, 38 * h:46 * h] += 3.0                                          # W1's rows of the obstacle block
     ic = world.initial_conditions(seed=2, n=4)
     assert not np.allclose(world.rollout(team, ic).xy, world.rollout(other, ic).xy)
 

@@ -104,7 +104,7 @@ def test_a_plugins_rollout_is_compiled_and_equals_its_env_step_by_step(name):
     s = world.compiled.state_of(xy, k)                                     # the world's state (World.state)
     for t in range(world.steps):                                           # the env's functions, one step at a time
         world.compiled.observe(xy, heading, k, s, obs)
-        kernel.act(team, obs, world.hidden, act)
+        kernel.act(team, obs, world.policy.hidden, act)
         world.compiled.step(xy, heading, act, k, s)
         np.testing.assert_allclose(xy, roll.xy[:, t + 1], atol=1e-9)
     env = RoverParallelEnv(world)

@@ -61,7 +61,7 @@ def observe(world, xy: np.ndarray, heading: np.ndarray) -> np.ndarray:
 def act(world, genomes: np.ndarray, obs: np.ndarray) -> np.ndarray:
     """Actions (SPEC section 4): genomes (N, G), obs (E, N, D) -> (E, N, 2), the MLP D -> H -> 2 with tanh on both
     layers (genome layout of :mod:`rovermarl.policy`)."""
-    w1, b1, w2, b2 = policy.unflatten(genomes, world.obs_dim, world.hidden)   # (N,D,H) (N,H) (N,H,2) (N,2)
+    w1, b1, w2, b2 = policy.unflatten(genomes, world.obs_dim, world.policy.hidden)   # (N,D,H) (N,H) (N,H,2) (N,2)
     hid = np.tanh(obs.transpose(1, 0, 2) @ w1 + b1[:, None, :])              # (N, E, H)
     return np.tanh(hid @ w2 + b2[:, None, :]).transpose(1, 0, 2)             # (E, N, 2)
 

@@ -1,40 +1,53 @@
-"""The multi-rover world (SPEC sections 1-3, 5): geometry, initial conditions, observation, reward, rollout.
+"""The multi-rover world (SPEC sections 1-3, 5): rollouts and team evaluation, on a world assembled from its seams.
 
-The world options of SPEC section 8 (other readings of the paper) are fields of :class:`World` and keys of the
-``env`` group: ``reward`` (final | any_step | best_step | mean_step), ``speed`` (affine | clip) and ``poi_type``
+:class:`World` is one frozen dataclass whose bases each hold one job:
+
+- :class:`~rovermarl.env.params.Params`: the parameters (fields; defaults from ``conf/env/rovers.yaml``, the policy's
+  configuration :class:`~rovermarl.policy.MLP`) and their checks;
+- :class:`~rovermarl.env.task.Task`: the POIs, the sensors' POI types, the observation size, the reward of positions;
+- :class:`~rovermarl.env.starts.Starts`: initial conditions; :class:`~rovermarl.env.scenario.Scenario`: what a world
+  plug-in overrides;
+- :func:`rovermarl.env.kernel.record.build`: the kernel's record of the world (``World.kernel``).
+
+What is derived from the parameters is computed when first read and kept (``functools.cached_property``); building a
+World reads the kernel record once, so a bad plug-in fails at construction. World itself holds the calls that run the
+compiled rollout: :meth:`World.evaluate`, :meth:`World.evaluate_many`, :meth:`World.rollout`, :meth:`World.observe`.
+
+The world options of SPEC section 8 (other readings of the paper) are fields and keys of the ``env`` group:
+``reward`` (final | any_step | best_step | mean_step), ``speed`` (affine | clip) and ``poi_type``
 (coupling | sign | value). The defaults are the SPEC reading.
 
 :class:`World` is also the base of a world plug-in: a subclass in a module of its own, named by ``env._target_`` in
-its yaml, adds fields (its parameters), may override :meth:`World.check`, :meth:`World.draw_layout`,
-:meth:`World.obs_blocks`, :meth:`World.kernel_extra`, :meth:`World.draw` and :meth:`World.log_static`, and sets
-``hooks`` to its compiled hooks (:mod:`rovermarl.env.kernel.hooks`); the rollout, the environments and the
-recordings follow (``docs/ARCHITECTURE.md``, "Adding a world").
+its yaml, adds fields (its parameters), may override the methods of :class:`~rovermarl.env.scenario.Scenario`, and
+sets ``hooks`` to its compiled hooks (:mod:`rovermarl.env.kernel.hooks`); the rollout, the environments and the
+recordings follow (``docs/WORLDS.md``).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Collection
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass
 from functools import cached_property
 from typing import ClassVar, NamedTuple
 
 import numpy as np
-from omegaconf import OmegaConf
 
-from rovermarl import errors, policy
+from rovermarl import errors
 from rovermarl.env import kernel
+from rovermarl.env.kernel import record
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
+from rovermarl.env.params import DTYPES, Params, keywords
 from rovermarl.env.prepared import Prepared, genomes_in, score_teams, warn_insane
 from rovermarl.env.scenario import Scenario
 from rovermarl.env.starts import InitialConditions, Starts
+from rovermarl.env.task import Task
 from rovermarl.jit import say_if_cold
 
 _NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
 
-DTYPES = ("float64", "float32")   # env.dtype: float32 is close to float64, not bit-identical (README)
+__all__ = ["DTYPES", "Rollout", "World", "score", "world_class"]
 
 
 class Rollout(NamedTuple):
@@ -46,7 +59,7 @@ class Rollout(NamedTuple):
 
 
 @dataclass(frozen=True, eq=False)
-class World(Starts, Scenario):
+class World(Params, Task, Starts, Scenario):
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
     ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
@@ -56,74 +69,26 @@ class World(Starts, Scenario):
     [1.0, -1.0, -1.0]
     """
 
-    coupling: tuple[int, ...]
-    value: tuple[float, ...]
-    n_rovers: int = 4
-    steps: int = 15
-    episodes: int = 16
-    poi_distance: float = 13.0
-    obs_radius: float = 2.0
-    sensor_range: float = 30.0
-    v_max: float = 1.0
-    w_max_deg: float = 60.0
-    start_box: float = 0.5
-    reward: str = "final"
-    speed: str = "affine"
-    poi_type: str = "coupling"
-    dtype: str = "float64"
-    hidden: int = 16
-    name: str = ""
-    poi_xy: np.ndarray = field(init=False, repr=False)
     hooks: ClassVar[Hooks] = ROVERS          # the compiled hooks of the world (rovermarl.env.kernel.hooks)
 
     def __post_init__(self):
-        n = errors.integer("env.n_rovers", self.n_rovers, 1)
-        if not isinstance(self.coupling, (list, tuple)) or len(self.coupling) == 0:
-            raise errors.ConfigError("setup.coupling", self.coupling, "must be a non-empty list of integers")
-        for j, c in enumerate(self.coupling):
-            if isinstance(c, bool) or not isinstance(c, int) or not 1 <= c <= n:
-                raise errors.ConfigError(f"setup.coupling[{j}]", c, f"must be an integer in 1..{n}: a POI "
-                                         f"cannot need more rovers than env.n_rovers={n}")
-        if not isinstance(self.value, (list, tuple)) or len(self.value) != len(self.coupling):
-            raise errors.ConfigError("setup.value", self.value,
-                                     f"must be a list of {len(self.coupling)} numbers, one per POI")
-        for j, v in enumerate(self.value):
-            errors.number(f"setup.value[{j}]", v, 0)
-        errors.integer("env.steps", self.steps, 1)
-        errors.integer("env.episodes", self.episodes, 1)
-        errors.number("env.poi_distance", self.poi_distance, 0)
-        errors.number("env.obs_radius", self.obs_radius, 0, lo_open=True)
-        errors.number("env.sensor_range", self.sensor_range, 0, lo_open=True)
-        errors.number("env.v_max", self.v_max, 0)
-        errors.number("env.w_max_deg", self.w_max_deg, 0, 180)
-        errors.number("env.start_box", self.start_box, 0)
-        errors.integer("policy.hidden", self.hidden, 1)
-        errors.choice("env.reward", self.reward, kernel.REWARDS)
-        errors.choice("env.speed", self.speed, kernel.SPEEDS)
-        errors.choice("env.poi_type", self.poi_type, kernel.POI_TYPES)
-        errors.choice("env.dtype", self.dtype, DTYPES)
-        self.check()
-        object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))
-        object.__setattr__(self, "value", tuple(float(v) for v in self.value))
-        angle = 2 * np.pi * np.arange(self.n_pois) / self.n_pois
-        poi_xy = self.poi_distance * np.stack([np.cos(angle), np.sin(angle)], axis=1)
-        object.__setattr__(self, "poi_xy", np.ascontiguousarray(poi_xy))
-        object.__setattr__(self, "_coupling", np.array(self.coupling, dtype=np.int64))
-        object.__setattr__(self, "_value", np.array(self.value, dtype=np.float64))
-        c = np.array(self.coupling, dtype=np.float64)
-        types = {"coupling": c - 1.0, "sign": np.where(c == 1, -1.0, 1.0), "value": self._value.copy()}
-        object.__setattr__(self, "_type", types[self.poi_type])
-        object.__setattr__(self, "_obs_dim", sum(low.size for _, low, _ in self.obs_blocks()))
-        object.__setattr__(self, "_team_shape", (self.n_rovers, policy.n_params(self.obs_dim, self.hidden)))
-        f = np.dtype(self.dtype).type                              # env.dtype: the kernel's precision
-        object.__setattr__(self, "_float", f)
-        object.__setattr__(self, "kernel", kernel.KernelWorld(    # the world as the kernel reads it, passed whole
-            self.poi_xy.astype(f), self._type.astype(f), self._coupling, self._value, self.steps, self.hidden,
-            self.obs_dim, f(self.sensor_range), f(self.obs_radius), f(self.v_max), f(self.w_max),
-            kernel.SPEEDS.index(self.speed), kernel.REWARDS.index(self.reward), np.empty((0, self.layout_dim)),
-            self.kernel_extra(), self.input_rows(), self.state_dims()))
+        super().__post_init__()                 # the parameters' checks, then the plug-in's (check)
+        self.kernel                             # noqa: B018 -- built now: a bad plug-in fails here, in one line
         if self.hooks != ROVERS or self.state:
             self.check_sense()
+
+    @cached_property
+    def kernel(self) -> kernel.KernelWorld:
+        """The world as the kernel reads it, passed whole (:func:`rovermarl.env.kernel.record.build`)."""
+        return record.build(self)
+
+    @cached_property
+    def _float(self) -> type:
+        return np.dtype(self.dtype).type        # env.dtype: the kernel's precision
+
+    @cached_property
+    def _team_shape(self) -> tuple[int, int]:
+        return self.n_rovers, self.policy.n_params(self.obs_dim)
 
     @cached_property
     def compiled(self):
@@ -135,64 +100,21 @@ class World(Starts, Scenario):
         """:attr:`kernel` with the initial conditions' ``layout`` (E, K) (a world without one: :attr:`kernel`)."""
         return self.kernel._replace(layout=layout) if self.layout_dim else self.kernel
 
-    @property
-    def poi_sensor_type(self) -> np.ndarray:
-        """(P,): the third sensor number of each POI in range (``env.poi_type``: ``c - 1``, the sign ``-1`` for
-        ``c = 1`` and ``+1`` otherwise, or the POI's value)."""
-        return self._type.copy()
-
-    # ---- construction -------------------------------------------------------------------------
     @classmethod
     def from_config(cls, cfg, trust: bool | Collection[str] = False, cls_: type[World] | None = None) -> World:
-        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections: the class ``env._target_``
-        names (this one by default), or ``cls_`` when given (a class the caller holds: ``make_world``). Only
-        rovermarl's own world unless ``trust`` (:func:`world_class`): the training path trusts the config it
-        composed from the command line; a read path of results never does unless ``--trust-config`` is given.
-        ``cfg`` may be a plain dict."""
-        cfg = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
-        setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
-        env = dict(OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env)
-        target = env.pop("_target_", None)
-        cls = cls_ or world_class(target, trust)
-        known = {f.name for f in fields(cls) if f.init}
-        for key in env:
-            if key not in known:
-                raise errors.ConfigError(f"env.{key}", env[key], "unknown key; allowed: " +
-                                         ", ".join(sorted(known - {"coupling", "value", "hidden", "name"})))
-        for key in ("coupling", "value"):
-            if key not in setup:
-                raise errors.ConfigError(f"setup.{key}", None, "missing; every setup lists one entry per POI")
-        return cls(coupling=tuple(setup["coupling"]), value=tuple(setup["value"]),
-                   hidden=cfg.policy.hidden, name=str(setup.get("name", "")), **env)
-
-    # ---- sizes --------------------------------------------------------------------------------
-    @property
-    def n_pois(self) -> int:
-        return len(self.coupling)
-
-    @property
-    def obs_dim(self) -> int:
-        """The sum of :meth:`obs_blocks`: 3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers) in the
-        paper's world."""
-        return self._obs_dim
+        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections (:func:`params.keywords
+        <rovermarl.env.params.keywords>`): the class ``env._target_`` names (this one by default), or ``cls_`` when
+        given (a class the caller holds: ``make_world``). Only rovermarl's own world unless ``trust``
+        (:func:`world_class`): the training path trusts the config it composed from the command line; a read path of
+        results never does unless ``--trust-config`` is given. ``cfg`` may be a plain dict."""
+        env = cfg["env"]
+        cls = cls_ or world_class(env.get("_target_") if hasattr(env, "get") else None, trust)
+        return cls(**keywords(cfg, cls))
 
     @property
     def n_params(self) -> int:
         """Genome length of one rover's policy (658 by default)."""
         return self._team_shape[1]
-
-    @property
-    def w_max(self) -> float:
-        return math.radians(self.w_max_deg)
-
-    @property
-    def max_return(self) -> float:
-        """Best achievable team return: a 0/1 knapsack of POIs with rover budget N (4 solo, 6 duo). Under
-        ``reward="any_step"``, or where two POIs' observation discs overlap (e.g. ``poi_distance=9, obs_radius=3``:
-        one rover can observe both), a rover may earn several POIs, so the bound is every POI's value."""
-        d = np.linalg.norm(self.poi_xy[:, None] - self.poi_xy[None], axis=-1)[np.triu_indices(self.n_pois, 1)]
-        overlap = bool((d < 2 * self.obs_radius).any())
-        return kernel.max_return(kernel.REWARDS.index(self.reward), self.coupling, self.value, self.n_rovers, overlap)
 
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
@@ -211,24 +133,6 @@ class World(Starts, Scenario):
                                      layout=layout.reshape(flat[1].shape[0], self.layout_dim))
             self.compiled.observe(*flat, k, self.compiled.state_of(flat[0], k),
                                   out.reshape(-1, self.n_rovers, self.obs_dim))
-        return out
-
-    def team_return(self, xy: np.ndarray) -> np.ndarray:
-        """Team return of one set of positions (SPEC section 1): xy (..., M, 2) -> (...,). It is the episode's
-        return under ``reward="final"`` (xy after the last step); the per-step readings combine it over the steps
-        (:meth:`episode_return`). ``M`` is any number of rovers: the team's N, or a counterfactual team (one rover
-        removed, partners added: :mod:`rovermarl.algorithms.credit`).
-
-        >>> w = make_world("duo")
-        >>> w.team_return(np.array([[13.0, 0.0], [12.5, 0.5], [0.0, 0.0]])).item()    # M = 3: both on duo POI 0
-        3.0
-        """
-        xy = np.ascontiguousarray(xy, dtype=np.float64)
-        if xy.ndim < 2 or xy.shape[-1] != 2:
-            raise ValueError(f"xy must have shape (..., M, 2), got {xy.shape}")
-        out = np.empty(xy.shape[:-2])
-        kernel.reward(xy.reshape(-1, *xy.shape[-2:]), self.poi_xy, self._coupling, self._value,
-                      float(self.obs_radius), out.reshape(-1))
         return out
 
     def episode_return(self, xy: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:

@@ -11,6 +11,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from rovermarl.env.kernel.rules import REWARDS, SPEEDS
+
 
 class KernelWorld(NamedTuple):
     """The world as the kernel reads it, owned by :class:`~rovermarl.env.World` (``World.kernel``) and passed whole.
@@ -43,3 +45,16 @@ class KernelWorld(NamedTuple):
     extra: tuple
     rows: np.ndarray
     state_dims: np.ndarray
+
+
+def build(world) -> KernelWorld:
+    """The record of ``world`` (a :class:`~rovermarl.env.World`, ``World.kernel``): its POIs, readings and sizes in
+    the kernel's precision (``env.dtype``), with an empty layout (``World.kernel_for`` sets the initial conditions')
+    and the plug-in's ``kernel_extra``, ``input_rows`` and ``state_dims``."""
+    f = np.dtype(world.dtype).type
+    return KernelWorld(
+        world.poi_xy.astype(f), world.poi_sensor_type.astype(f), np.array(world.coupling, dtype=np.int64),
+        np.array(world.value, dtype=np.float64), world.steps, world.policy.hidden, world.obs_dim,
+        f(world.sensor_range), f(world.obs_radius), f(world.v_max), f(world.w_max), SPEEDS.index(world.speed),
+        REWARDS.index(world.reward), np.empty((0, world.layout_dim)), world.kernel_extra(), world.input_rows(),
+        world.state_dims())
