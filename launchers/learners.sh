@@ -62,10 +62,6 @@ for w in $WORLDS; do
             echo "$(basename "$0"): $w/ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
             continue
         fi
-        if [ "$l" = ccea_dpp ] && { [ "$w" = random_pois ] || [ "$w" = moving_pois ]; }; then   # D++ re-scores
-            echo "$(basename "$0"): $w/ccea_dpp: the credits need each episode's POIs: not applicable" >&2   # without them
-            continue
-        fi
         read -ra par <<< "$PARALLEL"
         overrides=("${wo[@]}" "${lo[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "${par[@]}")
         name="$(job_name "${overrides[@]}" "seeds=$SEEDS")"

@@ -130,17 +130,19 @@ def test_the_issue_command_runs_with_figures_resume_and_recordings(tmp_path):
         assert json.loads(summary.read_text())["evals_per_generation"] == 11
 
 
-def _dpp_reference(world, xy):
-    """D++ one rover and one episode at a time, straight from the published algorithm (AADI's reading)."""
+def _dpp_reference(world, xy, layout=None):
+    """D++ one rover and one episode at a time, straight from the published algorithm (AADI's reading); episode e on
+    its own layout ``layout[e]`` if given."""
     n = xy.shape[-2]
     out = np.zeros((n, xy.shape[0]))
     for e in range(xy.shape[0]):
         ep = xy[e]
-        g = world.episode_return(ep)
+        ret = (lambda z: world.episode_return(z)) if layout is None else \
+            (lambda z, lay=layout[e]: world.episode_return(z, lay))
+        g = ret(ep)
         for i in range(n):
-            d = g - world.episode_return(np.delete(ep, i, axis=-2))
-            gain = {k: (world.episode_return(np.concatenate([ep] + [ep[:, i:i + 1]] * k, axis=-2)) - g) / k
-                    for k in range(1, n)}
+            d = g - ret(np.delete(ep, i, axis=-2))
+            gain = {k: (ret(np.concatenate([ep] + [ep[:, i:i + 1]] * k, axis=-2)) - g) / k for k in range(1, n)}
             best = gain[n - 1]
             if best <= d:
                 out[i, e] = d
@@ -162,6 +164,58 @@ def test_credits_equal_a_one_episode_at_a_time_reference(setup, reward):
     assert np.array_equal(credit.dpp(w, xy), _dpp_reference(w, xy))
     if reward == "final":                                                     # the cases D++ is for occur
         assert (credit.dpp(w, xy) != credit.difference(w, xy)).any()
+
+
+def _crowding(world, layout, seed=1):
+    """Trajectories (E, T+1, N, 2) whose rovers crowd the first three POIs of each episode (a duo POI among them),
+    where the episode's layout (E, K) puts them at each step."""
+    rng = np.random.default_rng(seed)
+    e, t1, n = len(layout), world.steps + 1, world.n_rovers
+    track = np.stack([world.poi_track(lay) if world.poi_track(lay) is not None else
+                      np.broadcast_to(world.poi_positions(lay), (t1, world.n_pois, 2)) for lay in layout])
+    pick = rng.integers(0, 3, (e, t1, n))
+    xy = np.take_along_axis(track[:, :, :, None, :], pick[:, :, None, :, None], axis=2)[:, :, 0]
+    return xy + rng.normal(0, 1.2, xy.shape)
+
+
+@pytest.mark.parametrize("name", ["random_pois", "moving_pois"])
+def test_credits_read_each_episodes_own_pois(name):
+    """D and D++ on worlds that draw their POIs per episode score every counterfactual team on that episode's POIs:
+    equal to a one-episode-at-a-time reference, different from the credits on another episode's POIs, and on the
+    paper's POIs equal to the paper world's credits."""
+    from tests.test_world_plugins import _world
+    w = _world(name)
+    ic = w.initial_conditions(seed=3, n=48)
+    xy = _crowding(w, ic.layout)
+    want_d = np.array([[w.episode_return(ep, lay) - w.episode_return(np.delete(ep, i, axis=-2), lay)
+                        for ep, lay in zip(xy, ic.layout, strict=True)] for i in range(w.n_rovers)])
+    got_d, got_dpp = credit.difference(w, xy, layout=ic.layout), credit.dpp(w, xy, layout=ic.layout)
+    assert np.array_equal(got_d, want_d)
+    assert np.array_equal(got_dpp, _dpp_reference(w, xy, ic.layout))
+    assert (got_dpp != got_d).any() and got_d.any()                             # the cases D++ is for occur
+    shifted = np.roll(ic.layout, 1, axis=0)                                      # another episode's POIs
+    assert not np.array_equal(credit.dpp(w, xy, layout=shifted), got_dpp)
+    with pytest.raises(ValueError, match="needs an episode's POIs"):             # never the fixed POIs silently
+        credit.dpp(w, xy)
+
+
+def test_credits_on_the_papers_pois_drawn_as_a_layout_are_the_paper_worlds():
+    from tests.test_world_plugins import _world
+    w, paper = _world("random_pois"), make_world("duo")
+    layout = np.broadcast_to(paper.poi_xy.reshape(-1), (32, 2 * paper.n_pois))
+    xy = _crowding(paper, np.zeros((32, 0)), seed=4)
+    for name in ("difference", "dpp"):
+        assert np.array_equal(credit.credit(name, w, xy, layout=layout), credit.credit(name, paper, xy)), name
+
+
+def test_ccea_dpp_runs_on_a_world_with_drawn_pois(tmp_path):
+    """The learners study's CCEA D++ cell on random_pois: trains, its rollouts carry each episode's layout."""
+    out = run_cli("env=random_pois", "hydra.searchpath=[file://examples/random_pois]", "algorithm=ccea",
+                  "algorithm.reward=dpp", "generations=3", "seeds=1", "parallel=serial",
+                  f"hydra.run.dir={tmp_path}", timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    curve = np.load(next(tmp_path.glob("**/curve.npz")))
+    assert curve["score"].shape == (4,) and curve["team_evals"][-1] == 1 + 11 * 3
 
 
 def test_ccea_mutates_by_a_gaussian_unless_told_otherwise():

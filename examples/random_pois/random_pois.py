@@ -14,8 +14,8 @@ Parameters (``env.*``)   the paper's world's, and ``ring_inner``, ``ring_outer``
 Observation              the paper's: 3P + 2N numbers (38)
 Layout                   (2P,) per episode: the POIs' x, y
 Hooks                    ``sense`` and the reward read the episode's POIs; ``move`` is the paper's
-Not measured             occupancy and C8 switches (they read fixed POIs: ``fixed_pois = False``); the CCEA's
-                         D and D++ credit (``team_return`` has no episode to read the POIs of)
+Not measured             occupancy and C8 switches (they read fixed POIs: ``fixed_pois = False``)
+CCEA D and D++           counterfactual teams scored by ``episode_return(xy, layout)``, on each episode's POIs
 ======================== ==============================================================================
 """
 

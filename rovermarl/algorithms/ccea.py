@@ -94,7 +94,8 @@ class CCEA(Algorithm):
                 fitness[rovers, teams[:, j]] = evaluate.score(genomes)
             else:
                 roll = evaluate.rollout(genomes)
-                fitness[rovers, teams[:, j]] = credit(self.reward, self.world, roll.xy, roll.returns).mean(axis=1)
+                credits = credit(self.reward, self.world, roll.xy, roll.returns, roll.layout)   # (N, E)
+                fitness[rovers, teams[:, j]] = credits.mean(axis=1)
         return fitness
 
     def _select(self, pops, fitness, rng) -> tuple[np.ndarray, np.ndarray]:

@@ -1,8 +1,9 @@
 """Credit of each rover for a team's episodes: the global reward G, the difference reward D (Agogino and Tumer) and
 D++ (Rahmattalabi et al., 2016), from trajectories and the world's own reward reading.
 
-Shapes: E episodes, T steps, N rovers; trajectories xy (E, T+1, N, 2) as :meth:`World.rollout
-<rovermarl.env.World.rollout>` returns them. Each credit is (N, E): rover i's credit in episode e.
+Shapes: E episodes, T steps, N rovers; trajectories xy (E, T+1, N, 2) and the episodes' layout (E, K) as
+:meth:`World.rollout <rovermarl.env.World.rollout>` returns them. Each credit is (N, E): rover i's credit in
+episode e.
 
 - ``G``: the team return, the same for every rover.
 - ``D_i = G(z) - G(z_{-i})``: the team return minus the return of the team with rover i removed.
@@ -12,7 +13,9 @@ Shapes: E episodes, T steps, N rovers; trajectories xy (E, T+1, N, 2) as :meth:`
   This is the published algorithm as the AADI lab's rover-domain code implements it.
 
 Counterfactual teams are scored by :meth:`World.episode_return <rovermarl.env.World.episode_return>`, which takes
-any number of rovers, so every world reading (``env.reward``) credits its own way.
+any number of rovers, so every world reading (``env.reward``) credits its own way, and on each episode's own
+layout: a world whose POIs are drawn per episode or move (``layout_dim`` K > 0) scores every counterfactual team of
+episode e against episode e's POIs.
 """
 
 from __future__ import annotations
@@ -22,19 +25,27 @@ import numpy as np
 CREDITS = ("global", "difference", "dpp")
 
 
-def _scored(world, xy: np.ndarray) -> np.ndarray:
-    """The part of trajectories xy (..., T+1, N, 2) the world's reading scores: the last step under ``final``
-    (counterfactual teams are then built from final positions only), else every step."""
-    return xy[..., -1:, :, :] if world.reward == "final" else xy
+def _scored(world, xy: np.ndarray, layout: np.ndarray | None) -> np.ndarray:
+    """The part of trajectories xy (..., T+1, N, 2) the world's reading scores: the last step under ``final`` on
+    fixed POIs (counterfactual teams are then built from final positions only), else every step."""
+    return xy[..., -1:, :, :] if world.reward == "final" and not _laid_out(layout) else xy
 
 
-def _returns(world, xy: np.ndarray) -> np.ndarray:
-    """Returns of (counterfactual) teams from :func:`_scored` trajectories (..., S, M, 2) -> (...,)."""
+def _returns(world, xy: np.ndarray, layout: np.ndarray | None) -> np.ndarray:
+    """Returns of (counterfactual) teams from :func:`_scored` trajectories (..., E, S, M, 2) -> (..., E), each
+    episode e on its layout ``layout[e]`` (E, K)."""
+    if _laid_out(layout):
+        return world.episode_return(xy, np.broadcast_to(layout, xy.shape[:-3] + layout.shape[-1:]))
     return world.team_return(xy[..., -1, :, :]) if world.reward == "final" else world.episode_return(xy)
 
 
-def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
-    """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+def _laid_out(layout: np.ndarray | None) -> bool:
+    """Whether the episodes carry a layout (K > 0): then counterfactuals are scored by whole episodes."""
+    return layout is not None and layout.shape[-1] > 0
+
+
+def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray | None = None) -> np.ndarray:
+    """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K).
 
     >>> from rovermarl.env import make_world
     >>> w = make_world("duo", n_rovers=2, steps=1)
@@ -42,7 +53,7 @@ def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndar
     >>> global_reward(w, xy).tolist()
     [[3.0], [3.0]]
     """
-    g = world.episode_return(xy) if g is None else g
+    g = world.episode_return(xy, layout) if g is None else g
     return np.broadcast_to(g, (xy.shape[-2], g.shape[0])).copy()
 
 
@@ -62,8 +73,8 @@ def with_partners(xy: np.ndarray, n: int) -> np.ndarray:
     return np.concatenate([team, np.repeat(own, n, axis=-2)], axis=-2)
 
 
-def difference(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
-    """D: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+def difference(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray | None = None) -> np.ndarray:
+    """D: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K) the episodes'.
 
     >>> from rovermarl.env import make_world
     >>> w = make_world("duo", n_rovers=2, steps=1)
@@ -71,12 +82,12 @@ def difference(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray
     >>> difference(w, xy).tolist()                                                  # each is needed
     [[3.0], [3.0]]
     """
-    g = world.episode_return(xy) if g is None else g
-    return g[None, :] - _returns(world, without(_scored(world, xy)))
+    g = world.episode_return(xy, layout) if g is None else g
+    return g[None, :] - _returns(world, without(_scored(world, xy, layout)), layout)
 
 
-def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
-    """D++: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known.
+def dpp(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray | None = None) -> np.ndarray:
+    """D++: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K) the episodes'.
 
     >>> from rovermarl.env import make_world
     >>> w = make_world("duo", n_rovers=2, steps=1)
@@ -84,13 +95,13 @@ def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
     >>> difference(w, xy).tolist(), dpp(w, xy).tolist()                             # D sees nothing; D++ sees 3
     ([[0.0], [0.0]], [[3.0], [0.0]])
     """
-    g = world.episode_return(xy) if g is None else g
-    d = difference(world, xy, g)
+    g = world.episode_return(xy, layout) if g is None else g
+    d = difference(world, xy, g, layout)
     rovers = xy.shape[-2]
     if rovers < 2:
         return d
-    xy = _scored(world, xy)
-    gain = np.stack([(_returns(world, with_partners(xy, n)) - g[None, :]) / n for n in range(1, rovers)])
+    xy = _scored(world, xy, layout)
+    gain = np.stack([(_returns(world, with_partners(xy, n), layout) - g[None, :]) / n for n in range(1, rovers)])
     most = gain[-1]                                                       # (N, E): N - 1 partners
     out = most.copy()
     decided = np.zeros(most.shape, dtype=bool)
@@ -101,6 +112,7 @@ def dpp(world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
     return np.where(most <= d, d, out)
 
 
-def credit(name: str, world, xy: np.ndarray, g: np.ndarray | None = None) -> np.ndarray:
-    """The credit ``name`` (one of :data:`CREDITS`): xy (E, T+1, N, 2) -> (N, E)."""
-    return {"global": global_reward, "difference": difference, "dpp": dpp}[name](world, xy, g)
+def credit(name: str, world, xy: np.ndarray, g: np.ndarray | None = None,
+           layout: np.ndarray | None = None) -> np.ndarray:
+    """The credit ``name`` (one of :data:`CREDITS`): xy (E, T+1, N, 2), the episodes' ``layout`` (E, K) -> (N, E)."""
+    return {"global": global_reward, "difference": difference, "dpp": dpp}[name](world, xy, g, layout)

@@ -51,11 +51,14 @@ __all__ = ["DTYPES", "Rollout", "World", "score", "world_class"]
 
 
 class Rollout(NamedTuple):
-    """Trajectories of E episodes: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)."""
+    """Trajectories of E episodes: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,), and the episodes' layout
+    (E, K) (:attr:`InitialConditions.layout`; K = 0 for the paper's world), so that counterfactual teams can be
+    re-scored on each episode's own POIs (:meth:`World.episode_return`)."""
 
     xy: np.ndarray
     heading: np.ndarray
     returns: np.ndarray
+    layout: np.ndarray
 
 
 @dataclass(frozen=True, eq=False)
@@ -168,7 +171,7 @@ class World(Params, Task, Starts, Scenario):
         p, genomes = self._prepared(ic), self._team(genomes)
         e = p.episodes
         traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
-                       np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e))
+                       np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e), p.ic.layout.copy())
         args = (genomes.astype(self._float), p.xy, p.heading, p.kernel, traj.returns, traj.xy, traj.heading, _NO_FINAL)
         say_if_cold(self.compiled.rollout, args, "the world's rollout")
         self.compiled.rollout(*args)
