@@ -162,6 +162,11 @@ class PPO(Algorithm):
     def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
         return self.num_envs * self.n_steps * self.world.n_rovers
 
+    def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
+        """Every training step is its own (the scoring of its deterministic team each generation is a team
+        evaluation besides)."""
+        return self.agent_steps_per_generation(fresh_ic)
+
     def _model(self):
         env = VecEnv(self.num_envs, world=self.world, time_feature=True)
         return _SB3PPO(GenomePolicy, env, policy_kwargs=self.policy_kwargs, device="cpu", verbose=0, **self.kwargs)

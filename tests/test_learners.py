@@ -20,6 +20,7 @@ def test_agent_steps_set_generations_for_every_learner(algorithm, generations):
     assert cfg.generations == generations
     algo = parts(to_plain(cfg)).algorithm
     assert algo.agent_steps_per_generation() == 960 * algo.evaluations_per_generation()
+    assert algo.own_agent_steps_per_generation() == 0                  # its steps are all team evaluations
 
 
 def test_no_agent_steps_leaves_generations_and_the_run_identity_as_they_were():

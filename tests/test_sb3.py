@@ -91,6 +91,11 @@ def test_a_ppo_job_killed_after_a_checkpoint_resumes_bit_identically(tmp_path):
     held = [json.loads(p.read_text())["heldout_score"] for d in (sweep, tmp_path / "ref")
             for p in d.glob("*/summary.json")]
     assert len(held) == 2 and held[0] == held[1]
+    from rovermarl.analysis.export import export
+
+    totals = export(tmp_path / "ref", tmp_path / "results", fig6=False, log=lambda *a: None)   # counts its training
+    assert totals["team_evals"] == 9 and totals["own_agent_steps"] == 8 * 16 * 15 * 4
+    assert totals["agent_steps"] == 9 * 960 + 8 * 16 * 15 * 4
 
 
 def test_the_sb3_example_runs_and_reports_both_returns():

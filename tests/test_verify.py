@@ -59,3 +59,15 @@ def test_a_doctored_genomes_file_is_one_line(job):
     np.savez_compressed(job / "genomes.npz", seed=seed, genomes=genomes[:, :, :5])
     proc = _cli(job.parent)
     assert proc.returncode == 2 and "has shape" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_a_plugin_worlds_job_re_scores_only_when_trusted():
+    """A world plug-in's committed job (the learners study's D++ on random_pois): refused in one line that names the
+    flag to pass, which verify takes; with it every team re-scores on its episodes' own POIs."""
+    job = ROOT / "results/learners/algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=19200000,env=random_pois"
+    refused = _cli(job)
+    assert refused.returncode == 2 and "pass --trust-config" in refused.stderr
+    assert len(refused.stderr.strip().splitlines()) == 1
+    proc = _cli("--trust-config", job)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines() == [f"ok  {job.name}: 8 teams re-score: final scores 8/8, held-out 8/8 equal"]

@@ -243,6 +243,12 @@ class Algorithm:
         w = self.world
         return int(round(self.evaluations_per_generation(fresh_ic) * w.episodes * w.steps * w.n_rovers))
 
+    def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
+        """Agent-steps one generation takes outside the team evaluations it asks of the :class:`Evaluator` (which
+        count in ``calls``): 0 for a learner that learns from team evaluations; a learner that steps the environment
+        itself (PPO) returns its training steps. A study's ``compute.json`` adds them to the evaluations'."""
+        return 0
+
     # ---- to implement ----------------------------------------------------------------------------------------
     def _init(self, streams: RunStreams, evaluate: Evaluator):
         raise NotImplementedError

@@ -9,7 +9,7 @@
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
   (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
-- ``verify DIR``: re-score every committed final team on its run's initial conditions and held-out ones; one line
+- ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and held-out ones; one line
   per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
   (:mod:`rovermarl.analysis.radius`).
@@ -76,6 +76,7 @@ def parser() -> argparse.ArgumentParser:
     h.add_argument("results", type=Path, help="the compact results, e.g. results/paper")
     v = sub.add_parser("verify", help="re-score every committed final team; exit 1 on any difference")
     v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
+    _trust(v)
     rd = sub.add_parser("radius", help="the pre-registered radius study: the report section")
     rd.add_argument("results", type=Path, help="results/radius")
     ln = sub.add_parser("learners", help="the learners study: docs/LEARNERS.md's section and one figure per world")
@@ -117,7 +118,7 @@ def main(argv=None) -> None:
             from rovermarl.analysis.learners import write
             write(args.results, args.doc)
         elif args.command == "verify":
-            _verify(args.results)
+            _verify(args.results, args.trust)
         elif args.command == "budget-geometry":
             from rovermarl.analysis.budget_geometry import report
             print(report(args.budget, args.geometry), end="")
@@ -130,10 +131,10 @@ def main(argv=None) -> None:
         sys.exit(2)
 
 
-def _verify(path: Path) -> None:
+def _verify(path: Path, trust: bool) -> None:
     from rovermarl.analysis.verify import verify
 
-    checked = verify(path)
+    checked = verify(path, trust)
     for c in checked:
         print(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}")
     bad = sum(not c.ok for c in checked)

@@ -60,6 +60,15 @@ def compute_of(job: Job) -> dict:
             "team_evals": sum(x["team_evals"] for x in launches)}
 
 
+def with_own_steps(compute: dict, summary: dict, world, generations: int) -> dict:
+    """``compute`` (:func:`compute_of`) with its agent-steps: the team evaluations' (``episodes x steps x
+    n_rovers`` each), plus ``own_agent_steps``, those a learner took itself over ``generations`` (all runs') at the
+    summary's ``own_agent_steps_per_generation`` (PPO's training steps; 0 for the others)."""
+    own = int(summary.get("own_agent_steps_per_generation", 0)) * generations
+    scored = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
+    return {**compute, "own_agent_steps": own, "agent_steps": scored + own}
+
+
 def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, trust: bool = False) -> dict:
     """Write one job's compact results into ``out``; returns its summary. A world plug-in's job only with ``trust``
     (its world is built to size the run files)."""
@@ -84,8 +93,7 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
         if c is not None:
             couplings[str(r.seed)] = c
     summary = read_json(job.path / "summary.json") if job.finished else {}
-    compute = compute_of(job)
-    compute["agent_steps"] = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
+    compute = with_own_steps(compute_of(job), summary, world, curves.generations * len(runs))
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
                     "episodes": episodes, "source": job.name, "compute": compute})
     if couplings:
@@ -145,7 +153,8 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     rerun = fig6_job(jobs) if fig6 else None
     if rerun is not None and not trust:
         check_targets(rerun.config, str(rerun.path))
-    totals = {"jobs": _kept_compute(out, {j.name for j in jobs}), "team_evals": 0, "agent_steps": 0, "wall_time_s": 0.0}
+    totals = {"jobs": _kept_compute(out, {j.name for j in jobs}), "team_evals": 0, "own_agent_steps": 0,
+              "agent_steps": 0, "wall_time_s": 0.0}
     named = {}
     for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
         group = [j for j in jobs if j.setup == setup]
@@ -156,7 +165,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
             summary = export_job(job, label, stage / job.name, grid_points, trust)
             totals["jobs"][job.name] = summary["compute"]
             log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
-        for key in ("team_evals", "agent_steps", "wall_time_s"):          # every job of out: exports add up
+        for key in ("team_evals", "own_agent_steps", "agent_steps", "wall_time_s"):   # every job of out: they add up
             totals[key] = sum(c.get(key, 0) for c in totals["jobs"].values())
         write_json(stage / "compute.json", totals)
         if rerun is not None:

@@ -13,7 +13,8 @@ the claims and figures need, in a few MB, with the same job-dir layout::
                                      probs (R, M, K) float32 on the grid (bandit jobs only)
     RESULTS_DIR/fig6.npz             one duo k=1 run's data for the Fig. 6-style figure (see
                                      :func:`rovermarl.analysis.export.export_fig6`)
-    RESULTS_DIR/compute.json         team evaluations, agent-steps and wall time of the whole sweep
+    RESULTS_DIR/compute.json         team evaluations, agent-steps (theirs, and a learner's own: PPO's training steps)
+                                     and wall time of the whole sweep
 """
 
 from __future__ import annotations

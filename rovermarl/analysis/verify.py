@@ -5,7 +5,8 @@ genomes (R, N, P) float64; written by ``analysis export`` and ``analysis heldout
 ``<job>/runs/seed_XXX/genomes.npy``. Each team is evaluated on its run's initial conditions and on its held-out
 ones, and both scores must equal, bit for bit, what the job's ``summary.json`` (and, in a sweep, each run's
 ``run.json``) says. The world is rebuilt from the job's own config only with rovermarl's own classes
-(:func:`~rovermarl.runner.trust.check_targets`): a results dir runs no code of its own.
+(:func:`~rovermarl.runner.trust.check_targets`): a results dir runs no code of its own, unless ``--trust-config``
+(a world plug-in's job, e.g. ``results/learners``' random_pois ones, run from the repository root).
 """
 
 from __future__ import annotations
@@ -33,11 +34,12 @@ class Checked:
     line: str
 
 
-def _config(job: Path) -> dict:
+def _config(job: Path, trust: bool = False) -> dict:
     for path in (job / "config.yaml", job / ".hydra" / "config.yaml"):
         if path.is_file():
             cfg = upgrade(OmegaConf.create(read_yaml(path)))
-            check_targets(cfg, str(path))
+            if not trust:
+                check_targets(cfg, str(path))
             return to_plain(cfg)
     raise ResultsError(f"{job}: no config.yaml")
 
@@ -70,9 +72,9 @@ def _recorded(job: Path, seed: int, summary: dict) -> tuple[float | None, float 
     return final, held
 
 
-def verify_job(job: Path) -> Checked:
-    """Re-score every team of one job dir."""
-    cfg = _config(job)
+def verify_job(job: Path, trust: bool = False) -> Checked:
+    """Re-score every team of one job dir (``trust``: build the classes its config names, a plug-in's included)."""
+    cfg = _config(job, trust)
     parts = build(cfg)
     world = parts.world
     summary = read_json(job / "summary.json")
@@ -100,8 +102,9 @@ def verify_job(job: Path) -> Checked:
                                    f"held-out {heldouts}/{len(teams)} equal")
 
 
-def verify(path: Path) -> list[Checked]:
-    """Every job of ``path`` (a results or sweep dir, or one job dir) that has final teams."""
+def verify(path: Path, trust: bool = False) -> list[Checked]:
+    """Every job of ``path`` (a results or sweep dir, or one job dir) that has final teams (``trust``: as in
+    :func:`verify_job`)."""
     path = Path(path)
     if not path.is_dir():
         raise ResultsError(f"{path}: not a directory")
@@ -110,4 +113,4 @@ def verify(path: Path) -> list[Checked]:
     jobs = [j for j in jobs if (j / "genomes.npz").is_file() or any((j / "runs").glob("seed_*/genomes.npy"))]
     if not jobs:
         raise ResultsError(f"{path}: no job with final teams (genomes.npz or runs/seed_*/genomes.npy)")
-    return [verify_job(j) for j in jobs]
+    return [verify_job(j, trust) for j in jobs]
