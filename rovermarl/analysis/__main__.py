@@ -9,8 +9,8 @@
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
   (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
-- ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and held-out ones; one line
-  per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
+- ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and
+  held-out ones; one line per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
   (:mod:`rovermarl.analysis.radius`).
 - ``learners RESULTS_DIR [--doc docs/LEARNERS.md]``: the learners study's section of docs/LEARNERS.md and its
