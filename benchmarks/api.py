@@ -10,8 +10,10 @@ The single-core figures run on one pinned core (``--core``, default the last thi
 pins itself), the two-core ones on two. Within each repeat the timed calls run in ``--chunks`` chunks in rotating
 order, so that machine noise hits them alike; each ratio is the median over repeats of the per-repeat ratio of
 times (below 1: faster than the rollout). Single-core times are process CPU time; the two-core ones wall time
-(threads), also for their one-core reference, so ``two_cores_over_one`` is a rate ratio in wall time. The load
-average is printed: on a shared machine the two-core figure is what the other processes leave.
+(threads), also for their one-core reference, so ``two_cores_over_one`` is a rate ratio in wall time;
+``two_processes_over_one`` is the same ratio for two processes, one a core, with no thread pool or GIL between
+them: the most two cores give this work here, against which the threads' figure reads. The load average is printed:
+on a shared machine the two-core figures are what the other processes leave.
 
 Teams (``setup=duo``, its 16 initial conditions of run 0): the first of 256 random teams (genomes uniform in
 [-2, 2]) that scores 0 (``zero``; most random and early teams do) and the first that scores above 0 (``scoring``);
@@ -150,7 +152,44 @@ def two_cores(dtype: str, a) -> dict:
     t = alternate(fns, {"one": n, "two": n}, a.repeats, a.chunks, clock=time.perf_counter)
     return {"many_64_us_per_team": {"one_thread": round(float(np.min(t["one"])) / 64 * 1e6, 2),
                                     "two_threads": round(float(np.min(t["two"])) / 64 * 1e6, 2)},
-            "two_cores_over_one": round(float(np.median(t["one"] / t["two"])), 4)}
+            "two_cores_over_one": round(float(np.median(t["one"] / t["two"])), 4),
+            "two_processes_over_one": two_processes(world, p, teams, n, a.repeats)}
+
+
+def two_processes(world, p, teams, n: int, repeats: int) -> float:
+    """The machine's own ceiling for :func:`two_cores`: the rate of two processes, one pinned to each core, each
+    making the same ``n`` one-thread ``evaluate_many`` calls at once, over the rate of one such process alone (no
+    GIL, no thread pool between them: what the cores give two copies of this work). Median over ``repeats`` of
+    alternated alone/pair rounds (forked, so nothing compiles again)."""
+    import multiprocessing as mp
+
+    cores = sorted(os.sched_getaffinity(0))[:2]
+
+    def work(core, conn, start):
+        os.sched_setaffinity(0, {core})
+        world.evaluate_many(teams, p, workers=1)                       # warm on this core
+        start.wait()
+        t = time.perf_counter()
+        for _ in range(n):
+            world.evaluate_many(teams, p, workers=1)
+        conn.send(time.perf_counter() - t)
+
+    def round_of(on) -> list:
+        ctx = mp.get_context("fork")
+        start, pipes = ctx.Barrier(len(on)), [ctx.Pipe(duplex=False) for _ in on]
+        procs = [ctx.Process(target=work, args=(c, w, start)) for c, (_, w) in zip(on, pipes, strict=True)]
+        for proc in procs:
+            proc.start()
+        times = [r.recv() for r, _ in pipes]
+        for proc in procs:
+            proc.join()
+        return times
+
+    ratios = []
+    for _ in range(repeats):
+        alone, pair = round_of(cores[:1])[0], round_of(cores)
+        ratios.append(alone * sum(1 / t for t in pair))               # rate of the pair / rate alone
+    return round(float(np.median(ratios)), 4)
 
 
 def main() -> None:

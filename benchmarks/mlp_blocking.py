@@ -33,7 +33,7 @@ from rovermarl.env.kernel import math as kmath
 from rovermarl.env.kernel import simd
 from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
-from rovermarl.env.kernel.stages import _mlp, _squash, sense_flat
+from rovermarl.env.kernel.stages import _lane0, _mlp, _squash, sense_flat
 
 SPLIT = "    # -- the hidden layer's sums"             # the kernel's hidden-layer sums start here ...
 RESUME = "    # -- the hidden layer's tanh"             # ... and end here
@@ -105,7 +105,7 @@ def compile_variant(source: str):
     """``source`` compiled with the kernel's options (not cached: it has no file)."""
     namespace = {"U": np.uint64, "tanh": kmath.tanh, "like": kmath.like, "hidden_tile": simd.hidden_tile,
                  "output_tile": simd.output_tile, "output_tile2": simd.output_tile2, "UNITS": simd.UNITS,
-                 "lanes": simd.lanes, "_squash": _squash}
+                 "lanes": simd.lanes, "_squash": _squash, "_lane0": _lane0}
     exec(source, namespace)                                                  # noqa: S102 - our own template
     options = {k: v for k, v in FAST.items() if k != "cache"}
     return njit(**options)(namespace["_mlp"])
