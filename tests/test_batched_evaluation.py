@@ -82,3 +82,36 @@ def test_a_team_that_is_not_finite_is_warned_about_by_each_call(dtype):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         world.evaluate_many(teams[:6], p, workers=2)                 # finite teams: no warning
+
+
+def test_threads_share_passes_and_callers_share_the_pool():
+    """Two callers at once, each splitting a population over 2 threads, with one pool thread between them: every
+    score is the bits of a loop of evaluate, whichever thread took each pass."""
+    import threading
+
+    world = make_world("duo", dtype="float32")
+    p = world.prepare(world.run_ic(1))
+    teams = np.random.default_rng(3).uniform(-2, 2, (2, 37, world.n_rovers, world.n_params))
+    want = [[world.evaluate(t, p) for t in population] for population in teams]
+    got = [None, None]
+
+    def call(i):
+        got[i] = [world.evaluate_many(teams[i], p, workers=2).tolist() for _ in range(5)]
+
+    callers = [threading.Thread(target=call, args=(i,)) for i in (0, 1)]
+    for t in callers:
+        t.start()
+    for t in callers:
+        t.join()
+    assert got == [[want[0]] * 5, [want[1]] * 5]
+
+
+def test_an_error_in_a_pool_thread_is_raised_by_the_call():
+    """The calling thread waits for the passes other threads took; a thread that failed is not waited for forever."""
+    def run(*args):
+        if args[-1] == 0:                                   # a pool thread (spins = 0)
+            raise RuntimeError("a hook failed in a pool thread")
+        return False                                        # the caller: its passes are never all scored
+
+    with pytest.raises(RuntimeError, match="a hook failed in a pool thread"):
+        prepared._share(run, (), 2)

@@ -22,6 +22,8 @@ import numpy as np
 from rovermarl import jit
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
+SHARED_LANES = 64       # the same when threads share the passes: smaller passes end together (4 teams of 16)
+SPINS = 1 << 20         # reads of the scored count between the calling thread's checks of its pool threads
 _NO_FINAL = np.empty((0, 1, 2))
 _F64 = np.dtype(np.float64)
 
@@ -64,19 +66,15 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     b, e = teams.shape[0] // world.n_rovers, p.episodes
     scores, returns, sane = np.empty(b), np.empty(b * e), np.empty(b, dtype=np.bool_)
     final = _NO_FINAL if final_xy is None else final_xy
-    per_pass = max(1, PASS_LANES // e)
-    run = world.compiled.evaluate_many
-    args = (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass)
-    jit.say_if_cold(run, args, "the world's rollout")
     threads = min(_cores() if workers is None else workers, b // 2) if b >= 4 else 1
+    per_pass = max(1, (PASS_LANES if threads <= 1 else min(SHARED_LANES, PASS_LANES)) // e)
+    run = world.compiled.evaluate_many
+    args = (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass, np.zeros(2, dtype=np.int64))
+    jit.say_if_cold(run, (*args, 0), "the world's rollout")
     if threads <= 1:
-        run(*args)
+        run(*args, 0)
     else:
-        n, size = world.n_rovers, per_pass * max(1, b // (4 * threads * per_pass))   # about 4 tasks a thread
-        tasks = [(teams[n * lo:n * hi], p.xy, p.heading, p.fields, returns[e * lo:e * hi], scores[lo:hi],
-                  sane[lo:hi], final if final_xy is None else final[e * lo:e * hi], per_pass)
-                 for lo, hi in ((lo, min(lo + size, b)) for lo in range(0, b, size))]
-        _share(run, tasks, threads)
+        _share(run, args, threads)
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
@@ -92,19 +90,18 @@ def warn_insane(sane: np.ndarray, returns: np.ndarray) -> None:
                       "non-finite actions, which score 0", RuntimeWarning, stacklevel=4)
 
 
-def _share(run, tasks: list, threads: int) -> None:
-    """``run(*task)`` for each task, on ``threads`` threads (this one and a pool's) taking the next task as each
-    finishes one: a thread on a busier core does fewer (the tasks write disjoint parts of the outputs)."""
-    left = iter(range(len(tasks)))                      # next() on it is atomic under the GIL
-
-    def work():
-        for i in left:
-            run(*tasks[i])
-
-    futures = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
-    work()
-    for f in futures:
-        f.result()
+def _share(run, args: tuple, threads: int) -> None:
+    """``run(*args, spins)`` (``fused.evaluate_many``) on ``threads`` threads at once, this one and a pool's: each
+    takes the next pass from the call's counters until none is left (``lanes.claim``), so a thread that starts late
+    or runs on a busier core does fewer, and no pass goes through the GIL. This thread then waits for the passes the
+    others took, without the GIL; an error in a pool thread is raised here. (Handing 4 tasks a call from thread to
+    thread through the GIL and a future instead gave two cores 1.52-1.63x one, against 1.70-1.83x: float32,
+    B = 64, interleaved.)"""
+    helpers = [_pool(threads - 1).submit(run, *args, 0) for _ in range(threads - 1)]
+    while not run(*args, SPINS):                        # a pool thread's pass is still running, or it failed
+        for f in helpers:
+            if f.done():
+                f.result()
 
 
 def _cores() -> int:

@@ -22,7 +22,7 @@ from rovermarl.env.kernel.hooks import (  # hooks
     stepwise,
     tick,
 )
-from rovermarl.env.kernel.lanes import in_precision, sane_teams, tile_flat, tile_rows
+from rovermarl.env.kernel.lanes import claim, claimed, in_precision, sane_teams, tile_flat, tile_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import score
@@ -235,20 +235,32 @@ def evaluate(genomes, xy0, heading0, fields, returns, final_xy):
 
 
 @njit(nogil=True, **FAST)
-def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass):
+def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass, counters, spins):
     """:func:`evaluate` of B teams (B*N, G) float64 (team b's rovers in rows ``b*N ..``) on the same initial
     conditions, ``per_pass`` teams side by side in one rollout's lanes (:mod:`~rovermarl.env.kernel.lanes`): scores
     (B,), sane (B,), returns (B*E,) (team b's from ``b*E``), final_xy (B*E, N, 2) unless its first axis is
-    zero-sized. Each score is the bits the team's own :func:`evaluate` gives. Releases the GIL: threads may score
-    parts of a population at once."""
+    zero-sized. Each score is the bits the team's own :func:`evaluate` gives, whichever teams share its pass.
+    counters (2,) int64, zeros at first: the next team to take, the teams scored. Several threads may run this
+    call on the same arguments at once (the GIL is released): each takes the next pass until none is left
+    (``lanes.claim``). Then, with ``spins > 0``, it waits for the passes other threads took, reading the count up to
+    ``spins`` times; returns whether all B teams are scored."""
     n_ep, n = heading0.shape
+    b_all = scores.shape[0]
     w = KernelWorld(*fields)
     no_xy, no_heading = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1))
-    sane_teams(teams, n, sane)
-    for b0 in range(0, scores.shape[0], per_pass):
-        b1 = min(b0 + per_pass, scores.shape[0])
-        out = returns[b0 * n_ep:b1 * n_ep]
+    while True:
+        b0 = claim(counters, 0, per_pass)
+        if b0 >= b_all:
+            break
+        b1 = min(b0 + per_pass, b_all)
+        sane_teams(teams[b0 * n:b1 * n], n, sane[b0:b1])
         final = final_xy[b0 * n_ep:b1 * n_ep] if final_xy.shape[0] else final_xy
-        rollout(in_precision(teams[b0 * n:b1 * n], xy0), xy0, heading0, w, out, no_xy, no_heading, final)
+        rollout(in_precision(teams[b0 * n:b1 * n], xy0), xy0, heading0, w, returns[b0 * n_ep:b1 * n_ep], no_xy,
+                no_heading, final)
         for b in range(b0, b1):
             scores[b] = score(returns[b * n_ep:(b + 1) * n_ep])
+        claim(counters, 1, b1 - b0)                    # after the writes: the caller may read them once it sees this
+    for _ in range(spins):
+        if claimed(counters, 1) >= b_all:
+            return True
+    return claimed(counters, 1) >= b_all
