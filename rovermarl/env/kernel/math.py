@@ -310,9 +310,10 @@ def sincos(a):
     return sin_a, cos_a
 
 
-@njit(**FAST)
+@njit(inline="always", **FAST)
 def sincos_all(heading, sin_h, cos_h):
-    """sin_h, cos_h (M,) <- sin, cos of heading (M,): :func:`sincos`, libm beyond ``SINCOS_MAX``."""
+    """sin_h, cos_h (M,) <- sin, cos of heading (M,): :func:`sincos`, libm beyond ``SINCOS_MAX``. Inlined: a call
+    of it in the move stage kept numba from pruning the reference counts of the pose's five arrays around it."""
     m = heading.shape[0]
     far = False
     for q in range(m):
