@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from rovermarl.env.kernel.borrow import borrow, keep
 from rovermarl.env.kernel.hooks import (  # hooks
     begin,
     finite,
@@ -60,18 +61,20 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     per, n = heading0.shape
     teams = genomes.shape[0] // n                      # B teams side by side: n_ep = B*E lanes of episodes
     n_ep = teams * per
-    if teams > 1 and layout.shape[0] == per:           # a plug-in's layout, one row per lane
-        layout = tile_rows(layout, teams)
-    w = KernelWorld(poi_xy, poi_type, coupling, value, steps, hidden, obs_dim, sensor_range, obs_radius, v_max, w_max,
-                    speed_mode, reward_mode, layout, extra, rows, state_dims)
+    owned_layout = tile_rows(layout, teams) if teams > 1 and layout.shape[0] == per else layout   # one row per lane
+    w = KernelWorld(borrow(poi_xy), borrow(poi_type), borrow(coupling), borrow(value), steps, hidden, obs_dim,
+                    sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, borrow(owned_layout),
+                    borrow(extra), borrow(rows), borrow(state_dims))
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
     d, hidden = w.obs_dim, w.hidden
-    state = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
+    # The step loop's arrays are borrowed (kernel.borrow: no atomic reference counts); their owners are kept below.
+    owned = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
+    state = borrow(owned)
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    obs = np.empty(d * ne, dtype=xy0.dtype)
-    hid = np.empty((hidden + 2) * per, dtype=xy0.dtype)
-    scratch, cand = np.empty(d, dtype=np.int64), w.rows
+    owned_obs, owned_rows = np.empty(d * ne, dtype=xy0.dtype), np.empty(d, dtype=np.int64)
+    owned_hid = np.empty((hidden + 2) * per, dtype=xy0.dtype)
+    obs, hid, scratch, cand, g = borrow(owned_obs), borrow(owned_hid), borrow(owned_rows), w.rows, borrow(genomes)
     tile_flat(xy0[:, :, 0], teams, x)
     tile_flat(xy0[:, :, 1], teams, y)
     tile_flat(heading0, teams, heading)
@@ -88,7 +91,7 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     each_step = stepwise(w)                            # measured: a score_step call left in the loop costs 5-10%
     for t in range(w.steps):
         ranged = sense(x, y, sin_h, cos_h, n, w, s, obs)
-        act_flat(genomes, obs, cand, n_ep, hidden, hid, scratch, a0, a1, sums_finite and ranged)
+        act_flat(g, obs, cand, n_ep, hidden, hid, scratch, a0, a1, sums_finite and ranged)
         move(x, y, heading, sin_h, cos_h, a0, a1, w, s)
         tick(x, y, n, w, s)
         if record:
@@ -103,6 +106,11 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
         from_flat(x, final_xy[:, :, 0])
         from_flat(y, final_xy[:, :, 1])
     score_end(w, xy, acc, returns, s)
+    keep(owned)
+    keep(owned_obs)
+    keep(owned_hid)
+    keep(owned_rows)
+    keep(owned_layout)
 
 
 # ---- batch-first steps: an environment's (PettingZoo, vectorised), the rollout's hooks one call at a time ----------
