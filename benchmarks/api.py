@@ -5,6 +5,7 @@ on two, in float64 and float32; and ``World.evaluate`` against 4c4ae3c's (its ke
 
     python benchmarks/api.py                 # about 2 minutes once compiled; --quick: about 20 s, no 4c4ae3c
     python benchmarks/api.py --quick --guard 1.25    # .ci/run: exit 1 if World.evaluate / rollout > 1.25
+    python benchmarks/api.py --two-cores-only --rounds 3     # the two-core part alone, 3 rounds in one process
 
 The single-core figures run on one pinned core (``--core``, default the last this process may use; the process
 pins itself), the two-core ones on two. Within each repeat the timed calls run in ``--chunks`` chunks in rotating
@@ -200,6 +201,8 @@ def main() -> None:
     p.add_argument("--chunks", type=int, default=10)
     p.add_argument("--core", type=int, default=None, help="the core of the single-core part (default: the last)")
     p.add_argument("--quick", action="store_true", help="3 repeats of 500 calls, no 4c4ae3c comparison")
+    p.add_argument("--two-cores-only", action="store_true", help="only the two-core part (B = 64), --rounds times")
+    p.add_argument("--rounds", type=int, default=1, help="with --two-cores-only: rounds in this one process")
     p.add_argument("--guard", type=float, default=None,
                    help="exit 1 if World.evaluate / rollout (prepared ic) is above this in either dtype or team")
     a = p.parse_args()
@@ -207,6 +210,14 @@ def main() -> None:
         a.repeats, a.evals, a.chunks = 3, 500, 5
     cores = sorted(os.sched_getaffinity(0))
     load_start = os.getloadavg()
+    if a.two_cores_only:
+        if a.guard is not None or len(cores) < 2:
+            p.error("--two-cores-only needs two CPUs and takes no --guard")
+        rounds = [{dtype: two_cores(dtype, a) for dtype in ("float64", "float32")} for _ in range(a.rounds)]
+        print(json.dumps({"benchmark": "api", "setup": a.setup, "two_cores_rounds": rounds,
+                          "loadavg_1m_start": round(load_start[0], 2), "loadavg_1m_end": round(os.getloadavg()[0], 2),
+                          "cpus": len(cores)}))
+        return
     old = None
     if not a.quick:
         sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
