@@ -376,8 +376,9 @@ def test_float32_rollouts_are_close_to_float64():
         assert np.array_equal(r32.returns, w32.returns(genomes, ic))
 
 
-def test_a_borrowed_array_is_the_same_memory_without_a_count():
-    """kernel.borrow: the step loop's arrays without numba's reference counts read and write the owner's memory."""
+def test_a_borrowed_array_reads_and_writes_its_owners_memory():
+    """kernel.borrow: an array without numba's memory record (the step loop's) is the owner's memory, and
+    anything that is not an array passes through."""
     owner = np.arange(12.0).reshape(3, 4)
     total, same = borrowed_rows(owner, (1, 2.5))
     assert owner[1].tolist() == [8.0, 10.0, 12.0, 14.0]          # written through the borrowed row

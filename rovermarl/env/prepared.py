@@ -95,8 +95,8 @@ def _share(run, args: tuple, threads: int) -> None:
     takes the next pass from the call's counters until none is left (``lanes.claim``), so a thread that starts late
     or runs on a busier core does fewer, and no pass goes through the GIL. This thread then waits for the passes the
     others took, without the GIL; an error in a pool thread is raised here. (Handing 4 tasks a call from thread to
-    thread through the GIL and a future instead gave two cores 1.52-1.63x one, against 1.70-1.83x: float32,
-    B = 64, interleaved.)"""
+    thread through the GIL and a future instead gave two cores 1.48-1.67x one, against 1.64-1.83x: float32,
+    B = 64, interleaved in one process, five runs.)"""
     helpers = [_pool(threads - 1).submit(run, *args, 0) for _ in range(threads - 1)]
     while not run(*args, SPINS):                        # a pool thread's pass is still running, or it failed
         for f in helpers:
