@@ -106,12 +106,51 @@ def test_threads_share_passes_and_callers_share_the_pool():
     assert got == [[want[0]] * 5, [want[1]] * 5]
 
 
-def test_an_error_in_a_pool_thread_is_raised_by_the_call():
-    """The calling thread waits for the passes other threads took; a thread that failed is not waited for forever."""
-    def run(*args):
-        if args[-1] == 0:                                   # a pool thread (spins = 0)
-            raise RuntimeError("a hook failed in a pool thread")
-        return False                                        # the caller: its passes are never all scored
+def test_helpers_follow_the_caller_from_world_to_world_and_call_to_call():
+    """The helpers wait for the next population in compiled code, bound to one world's initial conditions: calls that
+    alternate worlds, dtypes and initial conditions, and many small back-to-back calls, all get the bits of a loop of
+    evaluate."""
+    worlds = [make_world("duo"), make_world("duo", dtype="float32"), _world("obstacles")]
+    preps = [(w, w.prepare(w.run_ic(k))) for w in worlds for k in (0, 1)]
+    rng = np.random.default_rng(5)
+    cases = []
+    for w, p in preps:
+        teams = rng.uniform(-2, 2, (6, w.n_rovers, w.n_params))
+        cases.append((w, p, teams, [w.evaluate(t, p) for t in teams]))
+    for _ in range(3):
+        for w, p, teams, want in cases:
+            assert w.evaluate_many(teams, p, workers=2).tolist() == want
+    w, p, teams, want = cases[0]
+    for _ in range(300):                                       # 2 passes of 4 teams: the helper races the caller
+        assert w.evaluate_many(teams[:4], p, workers=2).tolist() == want[:4]
 
-    with pytest.raises(RuntimeError, match="a hook failed in a pool thread"):
-        prepared._share(run, (), 2)
+
+def test_an_error_in_a_helper_thread_is_raised_by_the_call_and_the_next_call_works():
+    """A helper that fails inside a job is not waited for forever: the call raises its error once the other threads
+    are done, and the next call gets a new relay."""
+    from types import SimpleNamespace
+
+    from rovermarl.env import relay
+    from rovermarl.env.kernel import fused, mailbox
+    from rovermarl.jit import njit
+
+    @njit(nogil=True)
+    def failing_serve(xy0, heading0, fields, box, counters, epoch, idle):
+        if epoch >= 0:                                      # (the relay calls it with -1 first, to compile it)
+            while mailbox.open_job(box, -1, epoch) < 0:
+                mailbox.pause()
+            mailbox.add(box, mailbox.INSIDE, 1)
+            raise ValueError("a hook failed in a helper thread")
+
+    world = make_world("duo")
+    p = world.prepare(world.run_ic(0))
+    teams = np.random.default_rng(2).uniform(-2, 2, (64, world.n_rovers, world.n_params))
+    flat = teams.reshape(64 * world.n_rovers, world.n_params)
+    out = np.empty(64), np.empty(64 * p.episodes), np.empty(64, dtype=np.bool_)
+    r = relay.relay(1)
+    stand_in = SimpleNamespace(serve=failing_serve, evaluate_many=fused.evaluate_many)
+    with pytest.raises(ValueError, match="a hook failed in a helper thread"):    # 64 passes: the helper joins
+        r.run(stand_in, p, (flat, out[1], out[0], out[2], prepared._NO_FINAL, 1), 2)
+    assert out[0].tolist() == [world.evaluate(t, p) for t in teams]     # the caller scored every team itself
+    assert relay.relay(1) is not r
+    assert world.evaluate_many(teams, p, workers=2).tolist() == out[0].tolist()

@@ -5,26 +5,26 @@ kernel's lanes and on every core (:func:`score_teams`).
 ``returns``, ``evaluate_many``, ``rollout`` and ``kernel_args`` take the :class:`Prepared` wherever they take ``ic``,
 and then check and convert only the genomes per call. Plain initial conditions still work: they are prepared on
 every call (a few microseconds). ``World.evaluate_many`` lays several teams' episodes side by side in one rollout's
-lanes (:mod:`rovermarl.env.kernel.lanes`) and, for a population of at least two teams per core, splits it over
-threads (the compiled call releases the GIL); each score is the bits ``World.evaluate`` gives.
+lanes (:mod:`rovermarl.env.kernel.lanes`) and, for a population of at least two teams per core, shares its passes
+with helper threads that wait in compiled code (:mod:`rovermarl.env.relay`); each score is the bits
+``World.evaluate`` gives.
 """
 
 from __future__ import annotations
 
 import os
-import threading
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 
 from rovermarl import jit
+from rovermarl.env.relay import relay
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
 SHARED_LANES = 64       # the same when threads share the passes: smaller passes end together (4 teams of 16)
-SPINS = 1 << 20         # reads of the scored count between the calling thread's checks of its pool threads
 _NO_FINAL = np.empty((0, 1, 2))
+_COUNTERS = np.zeros(2, dtype=np.int64)   # a stand-in of the pass counters' type, for jit.say_if_cold
 _F64 = np.dtype(np.float64)
 
 
@@ -68,13 +68,14 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     final = _NO_FINAL if final_xy is None else final_xy
     threads = min(_cores() if workers is None else workers, b // 2) if b >= 4 else 1
     per_pass = max(1, (PASS_LANES if threads <= 1 else min(SHARED_LANES, PASS_LANES)) // e)
-    run = world.compiled.evaluate_many
-    args = (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass, np.zeros(2, dtype=np.int64))
-    jit.say_if_cold(run, (*args, 0), "the world's rollout")
-    if threads <= 1:
-        run(*args, 0)
-    else:
-        _share(run, args, threads)
+    compiled = world.compiled
+    jit.say_if_cold(compiled.evaluate_many, (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass,
+                                             _COUNTERS), "the world's rollout")
+    job = (teams, returns, scores, sane, final, per_pass)
+    shared = threads > 1 and relay(threads - 1).run(compiled, p, job, threads)
+    if not shared:                                       # one thread, or another thread is using the relay
+        compiled.evaluate_many(teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass,
+                               np.zeros(2, dtype=np.int64))
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
@@ -90,37 +91,9 @@ def warn_insane(sane: np.ndarray, returns: np.ndarray) -> None:
                       "non-finite actions, which score 0", RuntimeWarning, stacklevel=4)
 
 
-def _share(run, args: tuple, threads: int) -> None:
-    """``run(*args, spins)`` (``fused.evaluate_many``) on ``threads`` threads at once, this one and a pool's: each
-    takes the next pass from the call's counters until none is left (``lanes.claim``), so a thread that starts late
-    or runs on a busier core does fewer, and no pass goes through the GIL. This thread then waits for the passes the
-    others took, without the GIL; an error in a pool thread is raised here. (Handing 4 tasks a call from thread to
-    thread through the GIL and a future instead gave two cores 1.48-1.67x one, against 1.64-1.83x: float32,
-    B = 64, interleaved in one process, five runs.)"""
-    helpers = [_pool(threads - 1).submit(run, *args, 0) for _ in range(threads - 1)]
-    while not run(*args, SPINS):                        # a pool thread's pass is still running, or it failed
-        for f in helpers:
-            if f.done():
-                f.result()
-
-
 def _cores() -> int:
     """The CPUs this process may run on (its affinity, e.g. under taskset)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:                               # not on Linux
         return os.cpu_count() or 1
-
-
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-_LOCK = threading.Lock()
-
-
-def _pool(size: int) -> ThreadPoolExecutor:
-    """This process's pool of at least ``size`` threads (a forked child makes its own)."""
-    key = os.getpid()
-    with _LOCK:
-        pool = _POOLS.get(key)
-        if pool is None or pool._max_workers < size:
-            _POOLS[key] = pool = ThreadPoolExecutor(max(size, _cores() - 1, 1), thread_name_prefix="rovermarl")
-        return pool

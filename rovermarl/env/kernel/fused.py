@@ -23,7 +23,8 @@ from rovermarl.env.kernel.hooks import (  # hooks
     stepwise,
     tick,
 )
-from rovermarl.env.kernel.lanes import claim, claimed, in_precision, sane_teams, tile_flat, tile_rows
+from rovermarl.env.kernel.lanes import claim, in_precision, sane_teams, tile_flat, tile_rows
+from rovermarl.env.kernel.mailbox import AWAKE, EPOCH, INSIDE, PER_PASS, add, job_arrays, load, open_job, pause, seated
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import score
@@ -243,15 +244,14 @@ def evaluate(genomes, xy0, heading0, fields, returns, final_xy):
 
 
 @njit(nogil=True, **FAST)
-def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass, counters, spins):
+def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass, counters):
     """:func:`evaluate` of B teams (B*N, G) float64 (team b's rovers in rows ``b*N ..``) on the same initial
     conditions, ``per_pass`` teams side by side in one rollout's lanes (:mod:`~rovermarl.env.kernel.lanes`): scores
     (B,), sane (B,), returns (B*E,) (team b's from ``b*E``), final_xy (B*E, N, 2) unless its first axis is
     zero-sized. Each score is the bits the team's own :func:`evaluate` gives, whichever teams share its pass.
     counters (2,) int64, zeros at first: the next team to take, the teams scored. Several threads may run this
-    call on the same arguments at once (the GIL is released): each takes the next pass until none is left
-    (``lanes.claim``). Then, with ``spins > 0``, it waits for the passes other threads took, reading the count up to
-    ``spins`` times; returns whether all B teams are scored."""
+    call on the same arguments at once (the GIL is released; :func:`serve`): each takes the next pass until none is
+    left (``lanes.claim``)."""
     n_ep, n = heading0.shape
     b_all = scores.shape[0]
     w = KernelWorld(*fields)
@@ -267,8 +267,33 @@ def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy,
                 no_heading, final)
         for b in range(b0, b1):
             scores[b] = score(returns[b * n_ep:(b + 1) * n_ep])
-        claim(counters, 1, b1 - b0)                    # after the writes: the caller may read them once it sees this
-    for _ in range(spins):
-        if claimed(counters, 1) >= b_all:
-            return True
-    return claimed(counters, 1) >= b_all
+        claim(counters, 1, b1 - b0)
+
+
+@njit(nogil=True, **FAST)
+def serve(xy0, heading0, fields, box, counters, epoch, idle):
+    """A helper thread's work (:mod:`rovermarl.env.relay`): wait in compiled code for populations on these initial
+    conditions posted to the ``box`` (:mod:`~rovermarl.env.kernel.mailbox`) and take passes of each with the caller
+    (:func:`evaluate_many` on the job's arrays and ``counters``); return after ``idle`` reads with no job, or once
+    the box's epoch is no longer ``epoch``."""
+    n_ep, n = heading0.shape
+    served, quiet = -1, 0
+    add(box, AWAKE, 1)
+    while True:
+        gen = open_job(box, served, epoch)
+        if gen < 0 and quiet < idle and load(box, EPOCH) == epoch:
+            quiet += 1
+            pause()
+            continue
+        if gen < 0:
+            add(box, AWAKE, -1)
+            gen = open_job(box, served, epoch)       # posted as this stopped, by a caller that saw it awake
+            if gen < 0:
+                return
+            add(box, AWAKE, 1)
+        add(box, INSIDE, 1)
+        if open_job(box, served, epoch) == gen and seated(box):
+            teams, returns, scores, sane, final = job_arrays(box, n_ep, n)
+            evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final, load(box, PER_PASS), counters)
+        add(box, INSIDE, -1)
+        served, quiet = gen, 0

@@ -6,9 +6,9 @@ of every stage serves B teams; B = 1 is one team, lane for lane the single rollo
 so each team's returns are the bits its own rollout gives.
 
 Threads share a population without the GIL: each takes the next pass from an int64 counter with an atomic
-fetch-and-add (:func:`claim`), and counts the teams it has scored on a second one, which the calling thread reads
-(:func:`claimed`) until every team is scored. A Python pool's hand-offs (a task queue, the GIL, a future) cost
-80-110 us each on this machine, a tenth of a two-core call of 64 float32 teams.
+fetch-and-add (:func:`claim`), and counts the teams it has scored on a second one. A Python pool's hand-offs (a
+task queue, the GIL, a future) cost 80-110 us each on this machine, a tenth of a two-core call of 64 float32 teams;
+:mod:`~rovermarl.env.kernel.mailbox` hands the population to helpers that wait in compiled code instead.
 """
 
 from __future__ import annotations
@@ -87,18 +87,6 @@ def claim(typingctx, counters, k, amount):
         ptr = _element(context, builder, sig, args)
         return builder.atomic_rmw("add", ptr, context.cast(builder, args[2], sig.args[2], types.int64), "seq_cst")
     return types.int64(counters, k, amount), codegen
-
-
-@intrinsic
-def claimed(typingctx, counters, k):
-    """``counters[k]`` read atomically with acquire order: what another thread wrote before its :func:`claim` on
-    ``counters[k]`` is visible once its count is seen."""
-    if not (isinstance(counters, types.Array) and counters.dtype == types.int64 and counters.layout == "C"):
-        return None
-
-    def codegen(context, builder, sig, args):
-        return builder.load_atomic(_element(context, builder, sig, args), "acquire", 8)
-    return types.int64(counters, k), codegen
 
 
 def _element(context, builder, sig, args):
