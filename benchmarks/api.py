@@ -19,7 +19,9 @@ on a shared machine the two-core figures are what the other processes leave.
 Teams (``setup=duo``, its 16 initial conditions of run 0): the first of 256 random teams (genomes uniform in
 [-2, 2]) that scores 0 (``zero``; most random and early teams do) and the first that scores above 0 (``scoring``);
 evaluate_many scores the first B of the 256. Per-team times of evaluate_many are compared with the rollout of
-the zero-scoring team (the same work).
+the zero-scoring team (the same work). ``steps_share_of_rollout``: the part of that rollout that its steps take,
+from the same rollout with twice the steps (``t(2T) / t(T) - 1``); the rest is the call's fixed cost, all that a
+batch of teams can share.
 """
 
 from __future__ import annotations
@@ -121,6 +123,8 @@ def one_core(dtype: str, a, old) -> dict:
            "evaluate_plain_ic": lambda: world.evaluate(zero, ic)}
     for b in (1, 16, 64):
         fns[f"many_{b}"] = lambda b=b: world.evaluate_many(teams[:b], p, workers=1)
+    longer = make_world(a.setup, dtype=dtype, steps=2 * world.steps)     # the same episodes, twice the steps
+    fns["rollout_zero_2t"] = rollout_call(longer, zero, longer.prepare(ic))
     if old is not None:
         fns["old_evaluate"] = lambda: old[0](zero, ic)
         fns["old_kernel"] = old[1](zero, ic)
@@ -134,7 +138,10 @@ def one_core(dtype: str, a, old) -> dict:
                                      "scoring": ratio(t, "evaluate_scoring", "rollout_scoring")},
            "evaluate_plain_ic_over_rollout": ratio(t, "evaluate_plain_ic", "rollout_zero"),
            "many_us_per_team": {b: us(t, f"many_{b}") for b in (1, 16, 64)},
-           "many_per_team_over_rollout": {b: ratio(t, f"many_{b}", "rollout_zero") for b in (1, 16, 64)}}
+           "many_per_team_over_rollout": {b: ratio(t, f"many_{b}", "rollout_zero") for b in (1, 16, 64)},
+           # the steps' share of the rollout: t(2T)/t(T) - 1 = 1 - fixed/t(T). A batch shares only the fixed part,
+           # so its per-team time over the rollout stays above this unless a step gets cheaper per team in it
+           "steps_share_of_rollout": round(float(np.median(t["rollout_zero_2t"] / t["rollout_zero"])) - 1, 4)}
     if old is not None:
         out["old_evaluate_us"], out["old_kernel_us"] = us(t, "old_evaluate"), us(t, "old_kernel")
         out["evaluate_speedup_over_4c4ae3c"] = ratio(t, "old_evaluate", "evaluate_zero")          # the speed check

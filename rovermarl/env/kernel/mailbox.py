@@ -21,6 +21,8 @@ back to Python. ``AWAKE`` counts the helpers in compiled code: the caller wakes 
 
 from __future__ import annotations
 
+import platform
+
 import numpy as np
 from llvmlite import ir
 from numba import carray, types
@@ -33,6 +35,7 @@ BOX = 16
 GEN, STATE, INSIDE, AWAKE, EPOCH, FAILED = 0, 1, 2, 3, 4, 5       # slots of the box, then the job's:
 TEAMS, ROWS, COLS, RETURNS, SCORES, SANE, FINAL, FINAL_ROWS, PER_PASS, SEATS = 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
 OPEN, CLOSED = 0, 1
+_X86 = platform.machine().lower() in ("x86_64", "amd64", "i386", "i686")
 
 
 def _slot(context, builder, sig, args):
@@ -100,10 +103,13 @@ def _pointer(typingctx, addr):
 
 @intrinsic
 def pause(typingctx):
-    """The CPU's spin-wait hint (x86 ``pause``): a waiting loop leaves the core's resources to others."""
+    """The CPU's spin-wait hint (x86 ``pause``: a waiting loop leaves the core's resources to others); nothing on
+    other CPUs."""
     def codegen(context, builder, sig, args):
-        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []), "llvm.x86.sse2.pause")
-        builder.call(fn, [])
+        if _X86:
+            fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(ir.VoidType(), []),
+                                                "llvm.x86.sse2.pause")
+            builder.call(fn, [])
         return context.get_dummy_value()
     return types.void(), codegen
 
