@@ -84,9 +84,9 @@ def test_a_team_that_is_not_finite_is_warned_about_by_each_call(dtype):
         world.evaluate_many(teams[:6], p, workers=2)                 # finite teams: no warning
 
 
-def test_threads_share_passes_and_callers_share_the_pool():
-    """Two callers at once, each splitting a population over 2 threads, with one pool thread between them: every
-    score is the bits of a loop of evaluate, whichever thread took each pass."""
+def test_threads_share_passes_and_callers_share_the_relay():
+    """Two callers at once, each asking for 2 threads, with one relay between them (a caller that finds it busy runs
+    its population alone): every score is the bits of a loop of evaluate, whichever thread took each pass."""
     import threading
 
     world = make_world("duo", dtype="float32")
