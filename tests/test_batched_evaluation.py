@@ -128,6 +128,7 @@ def test_helpers_follow_the_caller_from_world_to_world_and_call_to_call():
 def test_an_error_in_a_helper_thread_is_raised_by_the_call_and_the_next_call_works():
     """A helper that fails inside a job is not waited for forever: the call raises its error once the other threads
     are done, and the next call gets a new relay."""
+    import time
     from types import SimpleNamespace
 
     from rovermarl.env import relay
@@ -137,10 +138,17 @@ def test_an_error_in_a_helper_thread_is_raised_by_the_call_and_the_next_call_wor
     @njit(nogil=True)
     def failing_serve(xy0, heading0, fields, box, counters, epoch, idle):
         if epoch >= 0:                                      # (the relay calls it with -1 first, to compile it)
-            while mailbox.open_job(box, -1, epoch) < 0:
+            for _ in range(1000 * idle):                    # bounded: a helper never spins on after the test
+                if mailbox.open_job(box, -1, epoch) >= 0:
+                    mailbox.add(box, mailbox.INSIDE, 1)
+                    raise ValueError("a hook failed in a helper thread")
                 mailbox.pause()
-            mailbox.add(box, mailbox.INSIDE, 1)
-            raise ValueError("a hook failed in a helper thread")
+
+    def caller_after_the_helper_joined(*args):             # the caller's passes start once the helper is inside
+        deadline = time.monotonic() + 30
+        while r.box[mailbox.INSIDE] == 0 and time.monotonic() < deadline:
+            time.sleep(1e-4)
+        fused.evaluate_many(*args)
 
     world = make_world("duo")
     p = world.prepare(world.run_ic(0))
@@ -148,8 +156,8 @@ def test_an_error_in_a_helper_thread_is_raised_by_the_call_and_the_next_call_wor
     flat = teams.reshape(64 * world.n_rovers, world.n_params)
     out = np.empty(64), np.empty(64 * p.episodes), np.empty(64, dtype=np.bool_)
     r = relay.relay(1)
-    stand_in = SimpleNamespace(serve=failing_serve, evaluate_many=fused.evaluate_many)
-    with pytest.raises(ValueError, match="a hook failed in a helper thread"):    # 64 passes: the helper joins
+    stand_in = SimpleNamespace(serve=failing_serve, evaluate_many=caller_after_the_helper_joined)
+    with pytest.raises(ValueError, match="a hook failed in a helper thread"):
         r.run(stand_in, p, (flat, out[1], out[0], out[2], prepared._NO_FINAL, 1), 2)
     assert out[0].tolist() == [world.evaluate(t, p) for t in teams]     # the caller scored every team itself
     assert relay.relay(1) is not r

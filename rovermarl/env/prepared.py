@@ -24,7 +24,7 @@ from rovermarl.env.relay import relay
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
 SHARED_LANES = 64       # the same when threads share the passes: smaller passes end together (4 teams of 16)
 _NO_FINAL = np.empty((0, 1, 2))
-_COUNTERS = np.zeros(2, dtype=np.int64)   # a stand-in of the pass counters' type, for jit.say_if_cold
+_COUNTERS = np.zeros(1, dtype=np.int64)   # a stand-in of the pass counter's type, for jit.say_if_cold
 _F64 = np.dtype(np.float64)
 
 
@@ -75,7 +75,7 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     shared = threads > 1 and relay(threads - 1).run(compiled, p, job, threads)
     if not shared:                                       # one thread, or another thread is using the relay
         compiled.evaluate_many(teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass,
-                               np.zeros(2, dtype=np.int64))
+                               np.zeros(1, dtype=np.int64))
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns

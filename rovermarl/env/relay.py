@@ -28,7 +28,7 @@ class Relay:
 
     def __init__(self, helpers: int):
         self.box = np.zeros(mailbox.BOX, dtype=np.int64)
-        self.counters = np.zeros(2, dtype=np.int64)
+        self.counters = np.zeros(1, dtype=np.int64)
         self.busy = threading.Lock()                      # one caller at a time
         self.wake = threading.Semaphore(0)
         self.binding: tuple | None = None                 # (serve, xy, heading, fields, epoch) the helpers run

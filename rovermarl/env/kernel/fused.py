@@ -249,7 +249,7 @@ def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy,
     conditions, ``per_pass`` teams side by side in one rollout's lanes (:mod:`~rovermarl.env.kernel.lanes`): scores
     (B,), sane (B,), returns (B*E,) (team b's from ``b*E``), final_xy (B*E, N, 2) unless its first axis is
     zero-sized. Each score is the bits the team's own :func:`evaluate` gives, whichever teams share its pass.
-    counters (2,) int64, zeros at first: the next team to take, the teams scored. Several threads may run this
+    counters (1,) int64, zero at first: the next team to take. Several threads may run this
     call on the same arguments at once (the GIL is released; :func:`serve`): each takes the next pass until none is
     left (``lanes.claim``)."""
     n_ep, n = heading0.shape
@@ -267,7 +267,6 @@ def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy,
                 no_heading, final)
         for b in range(b0, b1):
             scores[b] = score(returns[b * n_ep:(b + 1) * n_ep])
-        claim(counters, 1, b1 - b0)
 
 
 @njit(nogil=True, **FAST)

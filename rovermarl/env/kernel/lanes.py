@@ -6,7 +6,7 @@ of every stage serves B teams; B = 1 is one team, lane for lane the single rollo
 so each team's returns are the bits its own rollout gives.
 
 Threads share a population without the GIL: each takes the next pass from an int64 counter with an atomic
-fetch-and-add (:func:`claim`), and counts the teams it has scored on a second one. A Python pool's hand-offs (a
+fetch-and-add (:func:`claim`). A Python pool's hand-offs (a
 task queue, the GIL, a future) cost 80-110 us each on this machine, a tenth of a two-core call of 64 float32 teams;
 :mod:`~rovermarl.env.kernel.mailbox` hands the population to helpers that wait in compiled code instead.
 """
@@ -90,7 +90,7 @@ def claim(typingctx, counters, k, amount):
 
 
 def _element(context, builder, sig, args):
-    """A pointer to element ``k`` of the counters (``args[:2]``; no bounds check: callers pass 0 and 1 of a (2,))."""
+    """A pointer to element ``k`` of the counters (``args[:2]``; no bounds check: callers pass 0 of a (1,))."""
     ary = context.make_array(sig.args[0])(context, builder, args[0])
     k = context.cast(builder, args[1], sig.args[1], types.intp)
     return cgutils.get_item_pointer(context, builder, sig.args[0], ary, [k])

@@ -117,12 +117,11 @@ def pause(typingctx):
 @njit(cache=True)
 def post(box, teams, returns, scores, sane, final, per_pass, counters, seats):
     """Open a job of B teams (``fused.evaluate_many``'s arrays: teams (B*N, G) float64, returns (B*E,), scores (B,),
-    sane (B,) bool, final (B*E, N, 2) or zero rows), ``per_pass`` teams a pass, its pass counters (2,) reset, for at
+    sane (B,) bool, final (B*E, N, 2) or zero rows), ``per_pass`` teams a pass, its pass counter (1,) reset, for at
     most ``seats`` helpers. Returns the job's number, for :func:`close`. The caller keeps the arrays alive until
     then."""
     gen = load(box, GEN) + 1
     counters[0] = 0
-    counters[1] = 0
     store(box, TEAMS, address(teams))
     store(box, ROWS, teams.shape[0])
     store(box, COLS, teams.shape[1])
