@@ -1,18 +1,23 @@
 #!/usr/bin/env bash
-# The learners study (issue 44, docs/LEARNERS.md): every coordination world x every family of learner at one budget
-# of agent-steps (budget.agent_steps: a team evaluation is episodes x steps x rovers = 960 agent-steps for 4 rovers),
-# SEEDS runs each, every final team also scored on its run's 256 held-out initial conditions.
-#   Worlds:   solo, duo, trio (conf/setup), obstacles, random_pois (examples/), moving_pois once examples/moving_pois
-#             exists (skipped until then).
+# The learners study (issues 44 and 54, docs/LEARNERS.md): every coordination world x every family of learner at one
+# budget of agent-steps (budget.agent_steps: a team evaluation is episodes x steps x rovers = 960 agent-steps for 4
+# rovers), SEEDS runs each, every final team also scored on its run's 256 held-out initial conditions.
+#   Worlds:   solo, duo, trio (conf/setup), obstacles, random_pois, moving_pois (examples/).
 #   Learners: CC-(1+1)-ES k=1, k=adaptive and homogeneous; the CCEA with D++; sep-CMA-ES over the team; PPO with
 #             parameter sharing (stable-baselines3: pip install -e ".[rl]"; skipped without it).
-# One job at a time (parallel=serial, record=off); after each, the compact results of every finished job of OUT go into
-# RESULTS (python -m rovermarl.analysis export), then docs/LEARNERS.md is regenerated (analysis learners).
-# Resumable, also across machines and sessions: a job whose compact files are in RESULTS is skipped, one whose runs are
-# in OUT resumes there from their checkpoints. Commit RESULTS between sessions and the study goes on where it stopped.
+#   Regimes:  fixed (evaluation.fresh_ic=false: each run trains on its 16 initial conditions; PPO's environments start
+#             from them in turn) on every world; fresh (evaluation.fresh_ic=true: new initial conditions every
+#             generation, the kept team re-scored beside the new ones) on FRESH_WORLDS (solo, duo, trio).
+#   Final team: the best kept so far for every learner (CC-ES and sep-CMA-ES are elitist; the CCEA and PPO are told
+#             algorithm.final_team=best).
+# Jobs run learner by learner, PPO last (it takes ~20x the others' time). After each, the compact results of every
+# finished job of OUT go into RESULTS (python -m rovermarl.analysis export), then docs/LEARNERS.md is regenerated.
+# Resumable, also across machines and sessions: a job whose compact files are in RESULTS, made from a committed tree
+# (provenance dirty: false) with its regime recorded, is skipped; any other is (re)computed, its runs resuming in OUT
+# from their checkpoints. Commit RESULTS between sessions and the study goes on where it stopped.
 # Usage: [AGENT_STEPS=N (default 19200000)] [SEEDS=S (default 8)] [OUT=DIR] [RESULTS=DIR] [WORLDS="solo ..."]
-#        [LEARNERS="cces_k1 ..."] [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)]
-#        launchers/learners.sh [HYDRA_OVERRIDE ...]
+#        [FRESH_WORLDS="solo duo trio"] [REGIMES="fixed fresh"] [LEARNERS="cces_k1 ..."]
+#        [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)] launchers/learners.sh [HYDRA_OVERRIDE ...]
 # Only the committed study's budget (AGENT_STEPS=19200000 SEEDS=8) refreshes results/learners; any other writes to
 # outputs/results/learners_g<AGENT_STEPS>_s<S>[,...] (results_dir in _sweep.sh).
 AGENT_STEPS="${AGENT_STEPS:-19200000}"
@@ -20,6 +25,8 @@ SEEDS="${SEEDS:-8}"
 GENERATIONS="$AGENT_STEPS"                     # what results_dir compares with the committed study's budget
 OUT="${OUT:-outputs/learners}"
 WORLDS="${WORLDS:-solo duo trio obstacles random_pois moving_pois}"
+FRESH_WORLDS="${FRESH_WORLDS:-solo duo trio}"
+REGIMES="${REGIMES:-fixed fresh}"
 PARALLEL="${PARALLEL:-parallel=serial}"        # how a job's seeds run: one after another, or on Ray
 LEARNERS="${LEARNERS:-cces_k1 cces_adaptive cces_homogeneous ccea_dpp cma ppo}"
 # shellcheck source=launchers/_sweep.sh
@@ -40,37 +47,63 @@ learner() {  # learner NAME: its overrides
         cces_k1) echo "k=1" ;;
         cces_adaptive) echo "k=adaptive" ;;
         cces_homogeneous) echo "team=homogeneous" ;;
-        ccea_dpp) echo "algorithm=ccea algorithm.reward=dpp" ;;
+        ccea_dpp) echo "algorithm=ccea algorithm.reward=dpp +algorithm.final_team=best" ;;
         cma) echo "algorithm=cma" ;;
-        ppo) echo "algorithm=ppo checkpoint.every=25 parallel.chunk=25" ;;   # a checkpoint every ~6 min
+        ppo) echo "algorithm=ppo +algorithm.final_team=best checkpoint.every=25 parallel.chunk=25" ;;
         *) echo "$(basename "$0"): error: LEARNERS: no learner '$1'" >&2; exit 2 ;;
     esac
 }
 
 
+regime() {  # regime NAME: its overrides (fixed is the default: its job names are those of the first study)
+    case "$1" in
+        fixed) echo "" ;;
+        fresh) echo "evaluation.fresh_ic=true" ;;
+        *) echo "$(basename "$0"): error: REGIMES: no regime '$1'" >&2; exit 2 ;;
+    esac
+}
+
+done_clean() {  # done_clean JOB_DIR: its compact files are there, made from a committed tree, its regime recorded
+    [ -f "$1/summary.json" ] && [ -f "$1/curves.npz" ] && "$PYTHON" -c '
+import sys
+from rovermarl.record.safe_read import read_json
+s = read_json(sys.argv[1])
+sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and (s.get("provenance") or {}).get("dirty") is False else 1)
+' "$1/summary.json" 2>/dev/null
+}
+
 rl=yes
 "$PYTHON" -c 'import torch, stable_baselines3' 2>/dev/null || rl=no
-for w in $WORLDS; do
-    read -ra wo <<< "$(world "$w")"
-    if [ "${#wo[@]}" -eq 0 ]; then
-        echo "$(basename "$0"): world $w: examples/$w does not exist yet: skipped" >&2
+ordered=()
+for l in $LEARNERS; do [ "$l" != ppo ] && ordered+=("$l"); done
+for l in $LEARNERS; do [ "$l" = ppo ] && ordered+=("$l"); done
+for l in "${ordered[@]}"; do
+    read -ra lo <<< "$(learner "$l")"
+    if [ "$l" = ppo ] && [ "$rl" = no ]; then
+        echo "$(basename "$0"): ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
         continue
     fi
-    for l in $LEARNERS; do
-        read -ra lo <<< "$(learner "$l")"
-        if [ "$l" = ppo ] && [ "$rl" = no ]; then
-            echo "$(basename "$0"): $w/ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
-            continue
-        fi
-        read -ra par <<< "$PARALLEL"
-        overrides=("${wo[@]}" "${lo[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "${par[@]}")
-        name="$(job_name "${overrides[@]}" "seeds=$SEEDS")"
-        if [ -f "$RESULTS/$name/summary.json" ] && [ -f "$RESULTS/$name/curves.npz" ]; then
-            echo "$(basename "$0"): $name is in $RESULTS: skipped" >&2
-            continue
-        fi
-        "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
-        "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config
-        "$PYTHON" -m rovermarl.analysis learners "$RESULTS" || true   # the report so far (not yet: skipped)
+    for r in $REGIMES; do
+        read -ra ro <<< "$(regime "$r")"
+        for w in $WORLDS; do
+            if [ "$r" = fresh ] && [[ " $FRESH_WORLDS " != *" $w "* ]]; then
+                continue
+            fi
+            read -ra wo <<< "$(world "$w")"
+            if [ "${#wo[@]}" -eq 0 ]; then
+                echo "$(basename "$0"): world $w: examples/$w does not exist yet: skipped" >&2
+                continue
+            fi
+            read -ra par <<< "$PARALLEL"
+            overrides=("${wo[@]}" "${lo[@]}" "${ro[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "${par[@]}")
+            name="$(job_name "${overrides[@]}" "seeds=$SEEDS")"
+            if done_clean "$RESULTS/$name"; then
+                echo "$(basename "$0"): $name is in $RESULTS (clean, regime recorded): skipped" >&2
+                continue
+            fi
+            "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
+            "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config
+            "$PYTHON" -m rovermarl.analysis learners "$RESULTS" || true   # the report so far (not yet: skipped)
+        done
     done
 done

@@ -16,7 +16,15 @@ policy is therefore a genome (P,) the world scores as every other learner's team
 it, its score after each generation (one PPO iteration: ``n_steps`` steps of ``num_envs`` environments, then the
 update) is F on the run's initial conditions, its held-out score F on the run's held-out ones. The critic alone also
 sees the step t / T (the time feature): the genome's inputs are the world's sensors, and without t the value of a
-state whose reward comes at the episode's last step cannot be learned (PPO then learns nothing). Resume is
+state whose reward comes at the episode's last step cannot be learned (PPO then learns nothing).
+
+Training starts (SPEC section 8's regimes, the same for every learner): with ``evaluation.fresh_ic=false`` (``fixed``)
+the environments start from the run's own initial conditions, taken in turn (``VectorEnv(starts=...)``); with
+``evaluation.fresh_ic=true`` (``fresh``) from ever new ones drawn from the run's environment stream, and each
+generation's score is measured on that generation's initial conditions (``Evaluator.draw``). ``final_team``: ``last``
+keeps the last iterate; ``best`` keeps the best iterate so far as the run's team, an iterate replacing it when it
+scores at least as well on the same initial conditions (under ``fresh`` the kept one is scored again beside it, as
+CC-(1+1)-ES re-scores its parents). Resume is
 bit-identical: the state holds the network and Adam moments as arrays and the torch, numpy-global and environment
 random states, and each iteration starts on fresh episodes (``n_steps`` is a multiple of ``env.steps``).
 """
@@ -135,9 +143,10 @@ class PPO(Algorithm):
     def __init__(self, world, num_envs: int = 256, n_steps: int = 15, batch_size: int = 1920, n_epochs: int = 5,
                  learning_rate: float = 3e-4, gamma: float = 0.99, gae_lambda: float = 0.95, clip_range: float = 0.2,
                  ent_coef: float = 0.0, vf_coef: float = 0.5, max_grad_norm: float = 0.5, log_std_init: float = -0.5,
-                 value_hidden: tuple = (64, 64), loop: str = "auto"):
+                 value_hidden: tuple = (64, 64), final_team: str = "last", loop: str = "auto"):
         super().__init__(world)
         errors.choice("loop", loop, ("auto", "python"))
+        self.final_team = errors.choice("final_team", final_team, ("last", "best"))
         self.num_envs = errors.integer("num_envs", num_envs, 1, 1_000_000)
         self.n_steps = errors.integer("n_steps", n_steps, world.steps, 1_000_000)
         if self.n_steps % world.steps:
@@ -155,9 +164,16 @@ class PPO(Algorithm):
                               "activation_fn": torch.nn.Tanh,
                               "log_std_init": errors.number("log_std_init", log_std_init)}
 
+    fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
+
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         """One iteration's steps in team evaluations (``num_envs * n_steps`` environment steps of N agents)."""
         return self.num_envs * self.n_steps / (self.world.episodes * self.world.steps)
+
+    def check_run(self, fresh_ic: bool, local: bool) -> None:
+        if not fresh_ic and not local:
+            raise errors.ConfigError("parallel.ic_shards", "> 1", "PPO trains on the run's initial conditions in its "
+                                     "own process under evaluation.fresh_ic=false: use parallel.ic_shards=1")
 
     def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
         return self.num_envs * self.n_steps * self.world.n_rovers
@@ -167,45 +183,76 @@ class PPO(Algorithm):
         evaluation besides)."""
         return self.agent_steps_per_generation(fresh_ic)
 
-    def _model(self):
-        env = VecEnv(self.num_envs, world=self.world, time_feature=True)
+    @staticmethod
+    def _starts(evaluate):
+        """The starts the environments take in turn: the run's own (``fixed``), or None (``fresh``: drawn)."""
+        if evaluate.fresh:
+            return None
+        inputs = evaluate.kernel_inputs()
+        if inputs is None:
+            raise errors.ConfigError("evaluation.fresh_ic", False, "PPO needs the run's initial conditions in its "
+                                     "own process to train on them")
+        return inputs.ic
+
+    def _model(self, starts=None):
+        env = VecEnv(self.num_envs, world=self.world, time_feature=True, starts=starts)
         return _SB3PPO(GenomePolicy, env, policy_kwargs=self.policy_kwargs, device="cpu", verbose=0, **self.kwargs)
 
     def _init(self, streams, evaluate):
         seeds = np.random.default_rng(streams.algorithm).integers(0, 2**63, 2)
         with _Rng({"torch": _torch_state(int(seeds[0])), "numpy": None}) as rng:
-            model = self._model()
-            state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state)
+            model = self._model(self._starts(evaluate))
+            state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
+                               cursor=0)
         state["numpy"] = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
-        team = self._team(state)
+        team = self._genomes(state["params"])
         measured = evaluate.measure(team)
         state["score"] = measured.score
+        if self.final_team == "best":
+            state["best"] = team[0].copy()                 # the kept iterate's genome (P,)
         return state, measured
 
-    def _team(self, state):
-        p = state["params"]
+    def _genomes(self, p) -> np.ndarray:
+        """The team (N, P) of an iterate's parameters: N copies of its deterministic actor."""
         genome = policy.flatten(p["mlp_extractor.policy_net.0.weight"].T, p["mlp_extractor.policy_net.0.bias"],
                                 p["action_net.0.weight"].T, p["action_net.0.bias"])
         return self.world.homogeneous(genome)
 
+    def _team(self, state):
+        if self.final_team == "best":
+            return self.world.homogeneous(np.asarray(state["best"], dtype=np.float64))
+        return self._genomes(state["params"])
+
     def _advance(self, state, generation, n, evaluate, observer):
         score, score_before = np.empty(n), float(state["score"])
+        best = self.final_team == "best"
         with _Rng({"torch": torch.get_rng_state().numpy(), "numpy": None}):
-            model = self._model()                          # its initial weights are replaced: the caller's RNG kept
+            model = self._model(self._starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
         with _Rng(state) as rng:
+            kept = np.asarray(state["best"], dtype=np.float64) if best else None
             self._load(model, state)
-            model.env.env._rng = generator(state["env_rng"])
+            env = model.env.env
+            env._rng, env.cursor = generator(state["env_rng"]), int(state.get("cursor", 0))
             for t in range(n):
-                model._last_obs = None                     # every iteration starts on fresh episodes (resumable)
+                model._last_obs = None                     # every iteration starts on new episodes (resumable)
                 model.learn(self.n_steps * model.env.num_envs, reset_num_timesteps=False)
-                state = self._save(model, rng, model.env.env._rng.bit_generator.state)
-                team = self._team(state)
+                state = self._save(model, rng, env._rng.bit_generator.state, env.cursor)
+                if evaluate.fresh:
+                    evaluate.draw(generation + t + 1)
+                team = self._genomes(state["params"])
                 f, final_xy = evaluate.measure(team)
+                if best:                                   # the kept iterate against the new one, same starts
+                    f_kept = evaluate.score(self.world.homogeneous(kept)) if evaluate.fresh else score_before
+                    if f >= f_kept:
+                        kept = team[0].copy()
+                    else:
+                        team, f, final_xy = self.world.homogeneous(kept), f_kept, None
+                    state["best"] = kept
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
                 score[t] = state["score"] = score_before = f
         return state, {"score": score}
 
-    def _save(self, model, rng, env_rng) -> dict:
+    def _save(self, model, rng, env_rng, cursor: int) -> dict:
         opt = model.policy.optimizer.state
         names = [name for name, _ in model.policy.named_parameters()]
         adam = {}
@@ -218,7 +265,7 @@ class PPO(Algorithm):
         params = {k: v.detach().numpy().copy() for k, v in model.policy.state_dict().items()}
         assert list(adam) == names
         return {"params": params, "adam": adam, "torch": rng.state()["torch"], "numpy": rng.state()["numpy"],
-                "env_rng": env_rng, "score": 0.0, "timesteps": int(model.num_timesteps)}
+                "env_rng": env_rng, "cursor": int(cursor), "score": 0.0, "timesteps": int(model.num_timesteps)}
 
     def _load(self, model, state) -> None:
         model.policy.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state["params"].items()})

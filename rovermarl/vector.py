@@ -23,6 +23,9 @@ works (``VectorEnv(world=...)``). ``reset(seed=s)`` draws the B starts of enviro
 ``World.initial_conditions(SeedSequence(s), n=B)`` (later resets and auto-resets continue that stream: the env stream
 of :mod:`rovermarl.env.streams`); ``seed`` may also be a list of B integers, environment b's starts then come from its
 own ``SeedSequence(seed[b])``; ``options={"ic": ic}`` starts from given initial conditions (e.g. ``World.run_ic``).
+``starts=ic`` (E initial conditions, e.g. a run's 16) makes every reset and auto-reset take its B starts from that set
+in turn, environment b of the c-th draw taking start ``(c * B + b) mod E`` (:attr:`cursor` counts the starts taken):
+how PPO trains on a run's fixed initial conditions.
 The PettingZoo env (:mod:`rovermarl.pettingzoo`) is the one-environment view of this step, without auto-reset.
 :class:`GymVectorEnv` is a Gymnasium ``VectorEnv`` view with the agents flattened (B*N sub-environments sharing one
 policy, as SuperSuit's parameter sharing does) for single-agent libraries.
@@ -49,7 +52,8 @@ class VectorEnv:
     """B environments of one world (``world``, else ``make_world(setup, **overrides)``), stepped together."""
 
     def __init__(self, num_envs: int = DEFAULTS["num_envs"], setup: str = DEFAULTS["setup"], world: World | None = None,
-                 time_feature: bool = DEFAULTS["time_feature"], autoreset: bool = True, **overrides):
+                 time_feature: bool = DEFAULTS["time_feature"], autoreset: bool = True, starts: tuple | None = None,
+                 **overrides):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs={num_envs!r}: must be an integer >= 1")
         self.world = world if world is not None else make_world(setup, **overrides)
@@ -64,6 +68,12 @@ class VectorEnv:
         self._compiled = self.world.compiled
         self._rng = np.random.default_rng()
         self._rngs = None
+        self.starts, self.cursor = None, 0
+        if starts is not None:
+            self.starts = tuple(np.asarray(a) for a in starts)    # E initial conditions, taken in turn
+            e = len(self.starts[1])
+            if e < 1 or self.starts[1].shape != (e, self.n_agents):
+                raise ValueError(f"starts: heading has shape {self.starts[1].shape}, expected (E, {self.n_agents})")
         self.t, self.over = 0, True
 
     # ---- episodes ------------------------------------------------------------------------------------------------
@@ -145,7 +155,12 @@ class VectorEnv:
         self._rngs = streams
 
     def _draw(self):
-        """B starts: one draw from the batch's stream, or one per environment from its own."""
+        """B starts: the next B of :attr:`starts` in turn, one draw from the batch's stream, or one per environment
+        from its own."""
+        if self.starts is not None:
+            take = (self.cursor + np.arange(self.num_envs)) % len(self.starts[1])
+            self.cursor += self.num_envs
+            return tuple(a[take] for a in self.starts)
         if self._rngs is None:
             return self.world.initial_conditions(self._rng, n=self.num_envs)
         parts = [self.world.initial_conditions(r, n=1) for r in self._rngs]
@@ -163,13 +178,15 @@ if gymnasium is not None:
     class GymVectorEnv(gymnasium.vector.VectorEnv):
         """A Gymnasium ``VectorEnv`` of B*N single-agent sub-environments: agent i of environment b is
         sub-environment ``b*N + i`` (parameter sharing). Observations (B*N, D), actions (B*N, 2), rewards,
-        terminations, truncations (B*N,); same-step auto-reset (``infos["final_obs"]`` (B*N, D))."""
+        terminations, truncations (B*N,). Auto-reset is Gymnasium's default, next-step: the step that ends the
+        episodes returns their last observations; the next step ignores its actions and returns the next episodes'
+        first observations, rewards 0 and no termination (what Gymnasium's wrappers expect)."""
 
-        metadata = {"autoreset_mode": AutoresetMode.SAME_STEP}
+        metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP}
 
         def __init__(self, num_envs: int = DEFAULTS["num_envs"], setup: str = DEFAULTS["setup"],
                      world: World | None = None, time_feature: bool = DEFAULTS["time_feature"], **overrides):
-            self.env = VectorEnv(num_envs, setup, world, time_feature, **overrides)
+            self.env = VectorEnv(num_envs, setup, world, time_feature, autoreset=False, **overrides)
             e = self.env
             self.num_envs = e.num_envs * e.n_agents
             self.single_observation_space = gymnasium.spaces.Box(e.obs_low, e.obs_high, dtype=e.dtype)
@@ -183,7 +200,9 @@ if gymnasium is not None:
 
         def step(self, actions):
             e = self.env
+            if e.over:                                      # next-step auto-reset: the actions are ignored
+                obs, infos = e.reset()
+                no = np.zeros(self.num_envs, bool)
+                return obs.reshape(self.num_envs, -1), np.zeros(self.num_envs), no, no.copy(), infos
             obs, rew, term, trunc, infos = e.step(np.asarray(actions).reshape(e.num_envs, e.n_agents, 2))
-            if "final_obs" in infos:
-                infos = {**infos, "final_obs": infos["final_obs"].reshape(self.num_envs, -1)}
             return (obs.reshape(self.num_envs, -1), rew.reshape(-1), term.reshape(-1), trunc.reshape(-1), infos)

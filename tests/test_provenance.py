@@ -4,7 +4,7 @@ recomputed under resume=strict."""
 import json
 
 from rovermarl.record.outputs import write_run_json
-from rovermarl.record.provenance import PACKAGES, provenance
+from rovermarl.record.provenance import CORE, PACKAGES, provenance
 from rovermarl.runner.job import run_job
 from tests.conftest import make_cfg
 
@@ -16,7 +16,8 @@ def test_run_and_summary_record_versions_and_commit(tmp_path):
     meta = json.loads((tmp_path / "job" / "runs" / "seed_000" / "run.json").read_text())
     for record in (meta["provenance"], summary["provenance"]):
         assert record["rovermarl"] == provenance()["rovermarl"] is not None
-        assert set(record["packages"]) == set(PACKAGES) and all(record["packages"].values())
+        assert set(record["packages"]) == set(PACKAGES) and all(record["packages"][name] for name in CORE)
+        assert record["cpu"] and record["machine"] and record["python"]             # torch's numbers depend on them
         assert len(record["commit"]) == 40 and isinstance(record["dirty"], bool)   # the tests run from a checkout
 
 

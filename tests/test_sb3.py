@@ -57,6 +57,34 @@ def test_ppo_resumes_bit_identically_and_its_team_is_its_deterministic_policy():
     assert whole["heldout_score"] == world.evaluate(whole["genomes"], world.heldout_ic(1, 256))
 
 
+@pytest.mark.parametrize("regime", [("evaluation.fresh_ic=false", "+algorithm.final_team=best"),
+                                    ("evaluation.fresh_ic=true", "+algorithm.final_team=best"),
+                                    ("evaluation.fresh_ic=true",)], ids=["fixed-best", "fresh-best", "fresh-last"])
+def test_ppo_regimes_resume_bit_identically_and_run_twice_the_same(regime):
+    plain = to_plain(make_cfg(*SMALL, "setup=solo", "generations=4", *regime))
+    whole, again = advance(plain, 2, None, 4), advance(plain, 2, None, 4)
+    assert np.array_equal(whole["score"], again["score"])               # run twice: the same numbers
+    assert np.array_equal(whole["genomes"], again["genomes"])
+    first = advance(plain, 2, None, 2)
+    rest = advance(plain, 2, first["state"], 4)
+    assert np.array_equal(np.concatenate([first["score"], rest["score"]]), whole["score"])
+    assert np.array_equal(rest["genomes"], whole["genomes"])
+    if "+algorithm.final_team=best" in regime and "evaluation.fresh_ic=false" in regime:
+        assert np.all(np.diff(whole["score"]) >= 0)                       # the kept iterate never scores less
+
+
+def test_ppo_fixed_regime_trains_on_the_runs_initial_conditions():
+    """evaluation.fresh_ic=false: the environments start from the run's 16 initial conditions, in turn."""
+    plain = to_plain(make_cfg(*SMALL, "setup=solo", "generations=1"))
+    algo, world = parts(plain).algorithm, make_world("solo")
+    ic = world.run_ic(5)
+    model = algo._model(ic)
+    obs = model.env.reset()
+    env = model.env.env
+    assert obs.shape == (16 * 4, 39) and env.cursor == 16
+    assert np.array_equal(env.heading, np.asarray(ic[1], env.heading.dtype))
+
+
 def test_ppo_budget_in_agent_steps_and_missing_extra_named(monkeypatch):
     cfg = compose_config("algorithm=ppo", "budget.agent_steps=19200000")
     validate(cfg)

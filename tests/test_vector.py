@@ -87,4 +87,38 @@ def test_the_gymnasium_view_flattens_the_agents():
         obs, rew, term, trunc, infos = env.step(env.action_space.sample())
         assert obs.shape == (24, 39) and rew.shape == term.shape == trunc.shape == (24,)
         assert env.observation_space.contains(obs)
-    assert term.all() and infos["final_obs"].shape == (24, 39)
+    assert term.all() and infos["return"].shape == (6,)
+    obs, rew, term, trunc, infos = env.step(env.action_space.sample())     # next-step auto-reset: a new episode
+    assert not term.any() and not rew.any() and infos["step"] == 0 and env.observation_space.contains(obs)
+
+
+def test_gymnasium_wrappers_accept_the_gymnasium_view():
+    """Gymnasium's vector wrappers (which refuse same-step auto-reset) wrap it and run through an episode's end."""
+    from gymnasium.wrappers import vector as wrappers
+
+    env = wrappers.RecordEpisodeStatistics(wrappers.FlattenObservation(wrappers.NormalizeObservation(
+        GymVectorEnv(num_envs=4, setup="solo"))))
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == (16, 39)
+    ended = 0
+    for _ in range(2 * 16):
+        obs, rew, term, trunc, infos = env.step(env.action_space.sample())
+        assert np.isfinite(obs).all() and obs.shape == (16, 39)
+        if "episode" in infos:
+            ended += int(infos["_episode"].sum())
+            assert np.all(infos["episode"]["l"][infos["_episode"]] == 15)
+    assert ended == 2 * 16                                                 # two episodes of 16 sub-environments
+
+
+def test_starts_are_taken_in_turn():
+    """starts=ic: every reset takes the next B of the E given starts, cycling (how PPO trains on fixed starts)."""
+    w = make_world("solo")
+    ic = w.run_ic(3)                                                       # E = 16
+    env = VectorEnv(num_envs=6, world=w, starts=ic, autoreset=False)
+    seen = []
+    for _ in range(8):                                                     # 48 starts = 3 rounds of 16
+        env.reset()
+        seen.append(env.heading.copy())
+    order = np.concatenate(seen)
+    assert np.array_equal(order, np.tile(np.asarray(ic[1], order.dtype), (3, 1)))
+    assert env.cursor == 48

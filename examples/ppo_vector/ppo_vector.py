@@ -73,7 +73,7 @@ def evaluate(env, act, episodes_seed):
     obs, _ = env.reset(seed=episodes_seed)
     for _ in range(env.env.world.steps):
         obs, _, _, _, infos = env.step(act(obs))
-    return float(infos["final_return"].mean())
+    return float(infos["return"].mean())
 
 
 def train(setup="solo", iterations=150, envs=256, seed=0, lr=3e-4, epochs=4, minibatches=8, gamma=0.99, lam=0.95,
@@ -89,6 +89,8 @@ def train(setup="solo", iterations=150, envs=256, seed=0, lr=3e-4, epochs=4, min
     obs, _ = env.reset(seed=seed)
     t0 = time.perf_counter()
     for it in range(iterations):
+        if it:                                               # the next episodes (the env auto-resets next step)
+            obs, _ = env.reset()
         # ---- rollout: one episode of every sub-environment ----
         obs_t, act_t, rew_t = np.empty((steps, n, d)), np.empty((steps, n, 2)), np.empty((steps, n))
         val_t, lp_t = np.empty((steps + 1, n)), np.empty((steps, n))

@@ -183,6 +183,7 @@ class Algorithm:
 
     series: tuple[Series, ...] = ()
     fresh_ic: bool = False
+    final_team: str = "best"      # the run's team: the best kept so far (elitist), or "last": the last iterate
 
     def __init__(self, world):
         self.world = world

@@ -11,12 +11,18 @@ One generation (after the AADI lab's rover-domain CCEA; our own code):
 4. the team of the elites (each population's best of step 2) is evaluated: its F is the score curve, as comparable
    with CC-(1+1)-ES's as its team is.
 
-A generation therefore costs ``pop_size + 1`` team evaluations; the ``team_evals`` series counts them (the initial
-team's included) so that curves can be compared at equal evaluations. The default ``pop_size`` of 10 is the AADI
-code's usual population for rover teams of this size.
+``final_team``: ``last`` (default) makes the elites team of the last generation the run's team; ``best`` keeps the
+best elites team so far, a new one replacing it when it scores at least as well on the same initial conditions.
+Under ``evaluation.fresh_ic`` (SPEC section 8) each generation draws its own initial conditions and scores every
+team there, the kept team of ``best`` again beside the new one (one evaluation more).
 
-Run state (a plain dict): ``pops`` (N, pop_size, P), ``score`` (the elites team's F), ``best`` (the best score so
-far: the behaviour observer logs new bests), ``evals`` (team evaluations so far) and the bit-generator state ``rng``.
+A generation therefore costs ``pop_size + 1`` team evaluations (``+ 1`` for ``best`` under ``fresh_ic``); the
+``team_evals`` series counts them (the initial team's included) so that curves can be compared at equal evaluations.
+The default ``pop_size`` of 10 is the AADI code's usual population for rover teams of this size.
+
+Run state (a plain dict): ``pops`` (N, pop_size, P), ``score`` (the run's team's F), ``best`` (the best score so
+far: the behaviour observer logs new bests), ``evals`` (team evaluations so far), the bit-generator state ``rng``
+and, for ``best``, the kept team ``kept`` (N, P).
 """
 
 from __future__ import annotations
@@ -33,8 +39,9 @@ class CCEA(Algorithm):
     :data:`~rovermarl.algorithms.credit.CREDITS`), the ``mutation`` node and the initial genome range."""
 
     def __init__(self, world, mutation, pop_size: int = 10, elites: int = 1, reward: str = "global",
-                 init_low: float = -2.0, init_high: float = 2.0, loop: str = "auto"):
+                 init_low: float = -2.0, init_high: float = 2.0, final_team: str = "last", loop: str = "auto"):
         super().__init__(world)
+        self.final_team = errors.choice("final_team", final_team, ("last", "best"))
         if errors.choice("loop", loop, LOOPS) == "compiled":
             raise errors.ConfigError("loop", loop, "the CCEA has no compiled generation loop (auto and python run "
                                      "its Python one)")
@@ -52,35 +59,55 @@ class CCEA(Algorithm):
                    tuple(f"rover{i}" for i in range(world.n_rovers))),
         )
 
+    fresh_ic = True
+
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
-        return self.pop_size + 1.0
+        return self.pop_size + 1.0 + (fresh_ic and self.final_team == "best")
 
     def _init(self, streams, evaluate):
         size = (self.world.n_rovers, self.pop_size, self.world.n_params)
         pops = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, size)
         measured = evaluate.measure(_elites(pops))
-        return {"pops": pops, "score": measured.score, "best": measured.score, "evals": 1,
-                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
+        state = {"pops": pops, "score": measured.score, "best": measured.score, "evals": 1,
+                 "rng": np.random.default_rng(streams.mutation).bit_generator.state}
+        if self.final_team == "best":
+            state["kept"] = _elites(pops)
+        return state, measured
 
     def _team(self, state):
-        return _elites(state["pops"])
+        return np.ascontiguousarray(state["kept"]) if self.final_team == "best" else _elites(state["pops"])
 
     def _advance(self, state, generation, n, evaluate, observer):
         rng = generator(state["rng"])
         pops, best, evals = np.array(state["pops"], dtype=np.float64), float(state["best"]), int(state["evals"])
+        keep = self.final_team == "best"
+        kept = np.array(state["kept"], dtype=np.float64) if keep else None
         score, h = np.empty(n), {s.name: s.empty(n) for s in self.series}
+        f_kept = float(state["score"])
         for t in range(n):
+            if evaluate.fresh:
+                evaluate.draw(generation + t + 1)                                           # SPEC section 8
             teams = np.argsort(rng.random((self.world.n_rovers, self.pop_size)), axis=1)   # 1. shuffle
             fitness = self._fitness(pops, teams, evaluate)                                  # 2. credit
             pops, h["fitness"][t] = self._select(pops, fitness, rng)                        # 3. select, mutate
             team = _elites(pops)
             f, final_xy = evaluate.measure(team)                                            # 4. the elites team
             evals += self.pop_size + 1
+            if keep:                                                                        # the kept team
+                if evaluate.fresh:
+                    f_kept, evals = evaluate.score(kept), evals + 1
+                if f >= f_kept:
+                    kept = team
+                else:
+                    team, f, final_xy = kept, f_kept, None
+                f_kept = f
             observer.accepted(generation + t + 1, team, f, f > best, final_xy)
             best = max(best, f)
             score[t], h["team_evals"][t] = f, evals
         state = {"pops": pops, "score": score[-1] if n else state["score"], "best": best, "evals": evals,
                  "rng": rng.bit_generator.state}
+        if keep:
+            state["kept"] = kept
         return state, {"score": score, **h}
 
     def _fitness(self, pops, teams, evaluate) -> np.ndarray:

@@ -16,6 +16,10 @@ arrays, and a run here must (a run is a pure function of its config and seed). O
 3. mean, evolution paths, diagonal C and step size sigma updated from the best ``mu = lam // 2`` (log weights);
 4. the team is the best sample so far: the score curve is its score (elitist, like CC-(1+1)-ES's parent team).
 
+Under ``evaluation.fresh_ic`` (SPEC section 8) each generation draws its own initial conditions, scores the population
+there and the kept best sample again beside it (one evaluation more); a sample replaces it when it scores at least as
+well there (as CC-(1+1)-ES re-scores its parents).
+
 Run state (a plain dict): ``mean``, ``diag``, ``ps``, ``pc`` (n,), ``sigma``, ``gen``, ``best`` (N, P), ``score``,
 ``evals`` and the bit-generator state ``rng``.
 """
@@ -62,8 +66,10 @@ class SepCMA(Algorithm):
             Series("sigma", "float64", (), np.nan, "the step size after the generation"),
         )
 
+    fresh_ic = True
+
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
-        return float(self.lam)
+        return float(self.lam + fresh_ic)
 
     def _init(self, streams, evaluate):
         n = self.n
@@ -89,11 +95,14 @@ class SepCMA(Algorithm):
             z = rng.standard_normal((self.lam, self.n))                                # 1. sample
             y = z * np.sqrt(diag)
             x = mean + sigma * y
+            if evaluate.fresh:                                                         # new starts: the kept best
+                evaluate.draw(generation + t + 1)                                      # scored there again
+                best_score, evals = evaluate.score(best), evals + 1
             measured = evaluate.measure_many(x.reshape(shape))                         # 2. score, rank
             f = np.array([m.score for m in measured])
             order = np.argsort(-f, kind="stable")
             evals += self.lam
-            if f[order[0]] > best_score:                                               # 4. the best so far
+            if f[order[0]] > best_score or (evaluate.fresh and f[order[0]] == best_score):   # 4. the best so far
                 best, best_score = x[order[0]].reshape(shape[1:]), float(f[order[0]])
                 observer.accepted(generation + t + 1, best, best_score, True, measured[order[0]].final_xy)
             yw = self.weights @ y[order[:mu]]                                          # 3. update

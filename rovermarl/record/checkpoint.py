@@ -43,6 +43,7 @@ class RunRecord:
         self.events: dict[str, list[np.ndarray]] = {}                 # "<file>_<key>" -> parts
         self.extra: dict[str, np.ndarray] = {}          # ic_xy, ic_heading, [ic_layout], genomes, heldout_score
         self.evaluations = 0                                          # team evaluations in this process's chunks
+        self.cpu_s = 0.0                                              # CPU-seconds of every chunk, resumes included
 
     @property
     def done(self) -> bool:
@@ -66,6 +67,7 @@ class RunRecord:
                 self.extra[key] = chunk[key]
         self.state, self.generation = chunk["state"], stop
         self.evaluations += chunk["evaluations"]
+        self.cpu_s += float(chunk.get("cpu_s", 0.0))
         return stop - start
 
     def result(self) -> dict:
@@ -83,7 +85,7 @@ class RunRecord:
         arrays.update({key: values[:g] for key, values in self.history.items()})
         meta = {"seed": self.seed, "generations": self.generations, "generation": self.generation,
                 "config_hash": config_hash, "history_keys": list(self.history), "event_keys": list(self.events),
-                "extra_keys": sorted(self.extra),
+                "extra_keys": sorted(self.extra), "cpu_s": self.cpu_s,
                 "state": _encode(self.state, arrays)}
         buf = io.BytesIO()
         np.savez(buf, _meta=np.array(json.dumps(meta)), **arrays)
@@ -135,6 +137,9 @@ class RunRecord:
                 raise ValueError(f"series {meta['history_keys']}, the algorithm declares {[s.name for s in series]}")
             rec = cls(meta["seed"], meta["generations"])
             rec.generation = meta["generation"]
+            rec.cpu_s = float(meta.get("cpu_s", 0.0))
+            if not 0 <= rec.cpu_s < 1e9:
+                raise ValueError(f"cpu_s {rec.cpu_s!r} is not a number of seconds")
             rec.score[:len(arrays["score"])] = arrays["score"]
             rec.history = {key: _full(arrays[key], rec.generations) for key in meta["history_keys"]}
             rec.extra = {key: arrays[key] for key in meta["extra_keys"]}

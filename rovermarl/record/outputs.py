@@ -128,6 +128,7 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     write_run_json(out, {"seed": int(result["seed"]), "generations": len(result["score"]) - 1,
                          "final_score": float(result["score"][-1]),
                          "heldout_score": float(result["heldout_score"]), "config_hash": config_hash,
+                         "cpu_s": float(result["cpu_s"]) if "cpu_s" in result else None,
                          "files": {name: digest(out / name) for name in names}, "provenance": provenance()})
     return out
 
@@ -204,9 +205,9 @@ def outcome(score: np.ndarray, levels) -> dict:
 
 
 def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels, wall_time_s: float,
-              team_evals: int, heldout: dict[int, float]) -> dict:
+              team_evals: int, heldout: dict[int, float], cpu_s: dict[int, float | None] | None = None) -> dict:
     """The job's summary: config choices, per-seed final and held-out scores, first generations reaching each
-    level (``outcomes``: :func:`outcome` of each seed)."""
+    level (``outcomes``: :func:`outcome` of each seed), each run's CPU-seconds (``cpu_s``; None: not recorded)."""
     final = {str(s): outcomes[s]["final"] for s in seeds}
     held = {str(s): float(heldout[s]) for s in seeds}
     return {
@@ -221,6 +222,7 @@ def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels
         "wall_time_s": wall_time_s,
         "team_evals": team_evals,
         "team_evals_per_s": team_evals / wall_time_s if wall_time_s > 0 else None,
+        "cpu_s": {str(s): (None if (cpu_s or {}).get(s) is None else float(cpu_s[s])) for s in seeds},
         "provenance": provenance(),
     }
 

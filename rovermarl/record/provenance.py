@@ -1,26 +1,33 @@
 """Where a result came from: the rovermarl version, its git commit (and whether the tree was dirty) when the
-package runs from a git checkout, and the versions of the libraries that compute and record it.
+package runs from a git checkout, the versions of the libraries that compute and record it (the learners' torch,
+stable-baselines3, gymnasium and MARL libraries among them: None when not installed), and the machine: torch on the
+CPU is deterministic on one machine, not across CPUs, so a learner's numbers are only comparable on the same ``cpu``.
 
 >>> sorted(provenance())                 # doctest: +SKIP
-['commit', 'dirty', 'packages', 'rovermarl']
+['commit', 'cpu', 'dirty', 'machine', 'packages', 'python', 'rovermarl']
 """
 
 from __future__ import annotations
 
+import platform
 import subprocess
 from functools import cache
 from importlib import metadata
 from pathlib import Path
 
-PACKAGES = ("numpy", "numba", "ray", "hydra-core", "omegaconf", "rerun-sdk")
+CORE = ("numpy", "numba", "ray", "hydra-core", "omegaconf", "rerun-sdk")            # always installed
+LEARNERS = ("torch", "stable-baselines3", "gymnasium", "torchrl", "tensordict", "benchmarl")   # extras: None if absent
+PACKAGES = CORE + LEARNERS
 
 
 @cache
 def provenance() -> dict:
-    """``rovermarl`` (version), ``commit`` and ``dirty`` (None outside a checkout), ``packages`` (name -> version)."""
+    """``rovermarl`` (version), ``commit`` and ``dirty`` (None outside a checkout), ``packages`` (name -> version),
+    ``python``, ``machine`` (e.g. x86_64) and ``cpu`` (its model name, None where the system does not say)."""
     commit, dirty = _git()
     return {"rovermarl": _version("rovermarl"), "commit": commit, "dirty": dirty,
-            "packages": {name: _version(name) for name in PACKAGES}}
+            "packages": {name: _version(name) for name in PACKAGES}, "python": platform.python_version(),
+            "machine": platform.machine(), "cpu": _cpu()}
 
 
 def same_code(recorded: dict | None) -> bool:
@@ -41,6 +48,18 @@ def describe(recorded: dict | None) -> str:
     if recorded.get("commit"):
         text += f" at {recorded['commit'][:8]}" + (" (dirty)" if recorded.get("dirty") else "")
     return text
+
+
+def _cpu() -> str | None:
+    """The CPU's model name (Linux: /proc/cpuinfo; elsewhere platform.processor(), or None)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()[:200]
+    except OSError:
+        pass
+    return platform.processor() or None
 
 
 def _version(name: str) -> str | None:

@@ -12,6 +12,7 @@ and get the same numbers. Evaluation is passed in (local by default, IC shards f
 from __future__ import annotations
 
 import json
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -215,10 +216,11 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: Evalua
 
     Returns ``seed``, ``start``, ``stop``, the new ``state``, ``score`` (stop - start,), ``series`` (the algorithm's
     arrays of those generations), ``events`` (the observer's, per result file), ``evaluations`` (team
-    evaluations); when starting also ``initial_score``
+    evaluations), ``cpu_s`` (the CPU-seconds the chunk took); when starting also ``initial_score``
     and the initial conditions ``ic_xy`` (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes`` and
     its ``heldout_score``.
     """
+    cpu = time.process_time()
     run = Run(cfg, seed, state, evaluation)
     start = run.generation
     arrays = run.advance(n)
@@ -231,6 +233,7 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: Evalua
             chunk.update(ic_layout=run.ic[2])
     if run.done:
         chunk.update(genomes=run.team, heldout_score=run.heldout_score())
+    chunk["cpu_s"] = time.process_time() - cpu                          # this process's CPU time for the chunk
     return chunk
 
 

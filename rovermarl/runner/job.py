@@ -93,7 +93,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
                  budget.size(est.total_memory))
     seeds = [cfg.seed + i for i in range(cfg.seeds)]
-    outcomes, heldout, todo, other_code = {}, {}, [], []
+    outcomes, heldout, cpu, todo, other_code = {}, {}, {}, [], []
     for seed in seeds:
         out = run_dir(job_dir, seed)
         if cfg.resume:
@@ -109,6 +109,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         if meta is not None:
             outcomes[seed] = outcome(load_score(out, cfg.generations), cfg.levels)
             heldout[seed] = meta["heldout_score"] if "heldout_score" in meta else _backfill(out, meta, built, seed)
+            cpu[seed] = meta.get("cpu_s")
             continue
         todo.append(seed)
     if other_code:
@@ -146,7 +147,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
                                           "team_evals": evaluations + sum(r.evaluations for r in records),
                                           "runs_advanced": len(todo)})
             if rec.done:
-                save_run(job_dir, rec.result(), series, key, rrd)
+                save_run(job_dir, {**rec.result(), "cpu_s": rec.cpu_s}, series, key, rrd)
+                cpu[rec.seed] = rec.cpu_s
                 checkpoint.remove(out / "checkpoint.bin")
                 outcomes[rec.seed] = outcome(rec.score, cfg.levels)
                 heldout[rec.seed] = float(rec.extra["heldout_score"])
@@ -161,8 +163,10 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             evaluations += sum(rec.evaluations for rec in records)
     wall = time.perf_counter() - t0
     summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
-                        heldout=heldout)
+                        heldout=heldout, cpu_s=cpu)
     summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
+    summary["train_ic"] = "fresh" if built.evaluation["fresh_ic"] else "fixed"   # what the learner trained on
+    summary["final_team"] = built.algorithm.final_team                # which team the held-out score is of
     summary["agent_steps_per_generation"] = built.algorithm.agent_steps_per_generation(built.evaluation["fresh_ic"])
     summary["own_agent_steps_per_generation"] = built.algorithm.own_agent_steps_per_generation(
         built.evaluation["fresh_ic"])
