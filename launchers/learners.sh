@@ -17,7 +17,10 @@
 # from their checkpoints. Commit RESULTS between sessions and the study goes on where it stopped.
 # Usage: [AGENT_STEPS=N (default 19200000)] [SEEDS=S (default 8)] [OUT=DIR] [RESULTS=DIR] [WORLDS="solo ..."]
 #        [FRESH_WORLDS="solo duo trio"] [REGIMES="fixed fresh"] [LEARNERS="cces_k1 ..."]
-#        [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)] launchers/learners.sh [HYDRA_OVERRIDE ...]
+#        [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)] [DOC=docs/LEARNERS.md]
+#        launchers/learners.sh [HYDRA_OVERRIDE ...]
+# A run that must stay clean (provenance dirty: false) while it writes keeps RESULTS and DOC outside the tracked tree
+# (e.g. RESULTS=/scratch/learners DOC=/scratch/LEARNERS.md, a copy of docs/LEARNERS.md), then copies them in.
 # Only the committed study's budget (AGENT_STEPS=19200000 SEEDS=8) refreshes results/learners; any other writes to
 # outputs/results/learners_g<AGENT_STEPS>_s<S>[,...] (results_dir in _sweep.sh).
 AGENT_STEPS="${AGENT_STEPS:-19200000}"
@@ -27,6 +30,7 @@ OUT="${OUT:-outputs/learners}"
 WORLDS="${WORLDS:-solo duo trio obstacles random_pois moving_pois}"
 FRESH_WORLDS="${FRESH_WORLDS:-solo duo trio}"
 REGIMES="${REGIMES:-fixed fresh}"
+DOC="${DOC:-docs/LEARNERS.md}"                 # where the report so far goes
 PARALLEL="${PARALLEL:-parallel=serial}"        # how a job's seeds run: one after another, or on Ray
 LEARNERS="${LEARNERS:-cces_k1 cces_adaptive cces_homogeneous ccea_dpp cma ppo}"
 # shellcheck source=launchers/_sweep.sh
@@ -103,7 +107,7 @@ for l in "${ordered[@]}"; do
             fi
             "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
             "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config
-            "$PYTHON" -m rovermarl.analysis learners "$RESULTS" || true   # the report so far (not yet: skipped)
+            "$PYTHON" -m rovermarl.analysis learners "$RESULTS" --doc "$DOC" || true   # the report so far
         done
     done
 done
