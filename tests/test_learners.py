@@ -79,10 +79,60 @@ def test_docs_learners_is_generated_from_the_committed_results():
 def test_learner_cells_are_named_from_their_overrides_and_holm_adjusts():
     from rovermarl.analysis.learners import classify
     from rovermarl.analysis.stats import holm
-    assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1")
-    assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == ("obstacles",
-                                                                                                      "ccea_dpp")
-    assert classify("budget.agent_steps=5,setup=duo,team=homogeneous") == ("duo", "cces_homogeneous")
+    assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1", "fixed")
+    assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == (
+        "obstacles", "ccea_dpp", "fixed")
+    assert classify("+algorithm.final_team=best,algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,"
+                    "evaluation.fresh_ic=True,setup=duo") == ("duo", "ccea_dpp", "fresh")
+    assert classify("budget.agent_steps=5,setup=duo,team=homogeneous") == ("duo", "cces_homogeneous", "fixed")
     assert classify("algorithm.reward=global,algorithm=ccea,budget.agent_steps=5,setup=duo") is None
     assert classify("k=1,setup=solo") is None                           # not a job of the study (no agent-steps)
     assert holm([0.01, 0.04, 0.03]) == pytest.approx([0.03, 0.06, 0.06])
+
+
+def test_the_median_interval_is_exact_and_seedless():
+    """The order-statistic interval: its coverage from the binomial, the largest k that keeps it at 95%."""
+    from scipy.stats import binom
+
+    from rovermarl.analysis.stats import iqm, median_exact
+    x = np.arange(16.0)[::-1]
+    est, coverage = median_exact(x)
+    assert (est.value, est.low, est.high) == (7.5, 3.0, 12.0)                  # k = 4: x_(4), x_(13)
+    assert coverage == pytest.approx(1 - 2 * binom.cdf(3, 16, 0.5)) and coverage >= 0.95
+    assert 1 - 2 * binom.cdf(4, 16, 0.5) < 0.95                                 # k = 5 would not keep 95%
+    assert median_exact(np.arange(8.0))[0].low == 0.0                            # n = 8: the range (99.2%)
+    assert iqm([0, 1, 2, 3, 4, 5, 6, 100]) == pytest.approx(3.5)
+
+
+def test_the_learners_reading_is_the_datas():
+    """Every sentence of the reading, re-derived here from results/learners with scipy alone: the leader is the
+    highest held-out median, each U and Holm p is scipy's Mann-Whitney of held-out scores, Holm by hand."""
+    import json
+    from pathlib import Path
+
+    from scipy.stats import mannwhitneyu
+
+    from rovermarl.analysis import learners
+    root = Path(__file__).resolve().parents[1] / "results" / "learners"
+    doc = learners.block((root.parents[1] / "docs" / "LEARNERS.md").read_text())
+    found = {}
+    for job in sorted(root.iterdir()):
+        key = learners.classify(job.name)
+        if key and (job / "summary.json").is_file():
+            found[key] = np.array(list(json.loads((job / "summary.json").read_text())["heldout_score"].values()))
+    for world, regime in {(w, r) for w, _, r in found}:
+        row = {lr: found[(world, lr, regime)] for lr in learners.LEARNERS if (world, lr, regime) in found}
+        if len(row) < 2:
+            continue
+        leader = max(row, key=lambda n: (np.median(row[n]), -list(row).index(n)))
+        line = next(ln for ln in doc.splitlines() if ln.startswith(f"- **{world}, {learners.REGIMES[regime]}**"))
+        assert f"{learners.LEARNERS[leader]} has the highest held-out median ({np.median(row[leader]):.3g})" in line
+        others = [n for n in row if n != leader]
+        p = [mannwhitneyu(row[leader], row[n], alternative="two-sided").pvalue for n in others]
+        order, running, adjusted = np.argsort(p), 0.0, [0.0] * len(p)
+        for rank, i in enumerate(order):
+            running = max(running, min(1.0, (len(p) - rank) * p[i]))
+            adjusted[i] = running
+        for n, q in zip(others, adjusted, strict=True):
+            shown = "<1e-4" if q < 1e-4 else f"={q:.2g}"
+            assert f"{learners.LEARNERS[n]} (" in line and f"Holm p{shown})" in line.split(learners.LEARNERS[n])[1]

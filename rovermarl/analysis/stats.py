@@ -1,4 +1,5 @@
-"""The statistics of the claims reports: bootstrap CIs of medians, Wilson CIs of counts, Mann-Whitney U.
+"""The statistics of the claims reports: bootstrap CIs of medians (seeded), exact order-statistic CIs of medians,
+interquartile means, Wilson CIs of counts, Mann-Whitney U and Holm's adjustment (statsmodels).
 
 Times to a level are censored at the budget: a run that never reaches the level counts as ``inf``, which
 ranks after every reached time (Mann-Whitney) and makes a median ``inf`` when half the runs never got there.
@@ -104,13 +105,29 @@ def mann_whitney(x, y) -> Test:
 
 
 def holm(p) -> list[float]:
-    """Holm's step-down adjustment of the p-values ``p`` of one family of tests (same order)."""
+    """Holm's step-down adjustment of the p-values ``p`` of one family of tests (same order; statsmodels')."""
+    from statsmodels.stats.multitest import multipletests
+
     p = [float(x) for x in p]
-    order, running, out = sorted(range(len(p)), key=lambda i: p[i]), 0.0, [1.0] * len(p)
-    for rank, i in enumerate(order):
-        running = max(running, min(1.0, (len(p) - rank) * p[i]))
-        out[i] = running
-    return out
+    return [float(x) for x in multipletests(p, method="holm")[1]] if p else []
+
+
+def median_exact(x, confidence: float = CONFIDENCE) -> tuple[Estimate, float]:
+    """Median of x (n,) with the distribution-free order-statistic interval [x_(k), x_(n+1-k)], k the largest whose
+    coverage ``1 - 2 P(Binom(n, 1/2) <= k - 1)`` is at least ``confidence`` (k = 1, the range, when none is: n <= 5
+    at 95%). No resampling, so no seed: the same data give the same interval. Returns it and its coverage."""
+    x = np.sort(np.asarray(x, dtype=np.float64))
+    n = len(x)
+    k = 1
+    while k + 1 <= (n + 1) // 2 and 1 - 2 * stats.binom.cdf(k, n, 0.5) >= confidence:
+        k += 1
+    coverage = 1 - 2 * stats.binom.cdf(k - 1, n, 0.5)
+    return Estimate(float(np.median(x)), float(x[k - 1]), float(x[n - k])), float(coverage)
+
+
+def iqm(x) -> float:
+    """The interquartile mean of x (n,): the mean of its middle half (scipy's 25% trimmed mean)."""
+    return float(stats.trim_mean(np.asarray(x, dtype=np.float64), 0.25))
 
 
 def format_count(est: Estimate, n: int) -> str:
