@@ -19,6 +19,7 @@ from hydra.experimental.callback import Callback
 
 from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.sweep import SweepError
+from rovermarl.errors import Printable, printable
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
@@ -71,7 +72,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser().parse_args(argv)
     if args.update_gen is not None and args.update_run is None:
         parser().error("--update-gen needs --update-run")
-    logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(Printable(f"{PROG}: %(message)s"))               # what a file holds, escaped
+    logging.basicConfig(level=logging.INFO, handlers=[handler])
     out = args.out if args.out is not None else default_out(args.path)
     kwargs = {"thresholds": dict(args.threshold), "formats": args.formats, "update_run": args.update_run,
               "update_gen": args.update_gen, "xscale": args.xscale, "x": args.x, "trust": args.trust}
@@ -84,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         from rovermarl.analysis.figures import plot_sweep
         index = plot_sweep(args.path, out, log=log, **kwargs)
     except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
-        print(f"{PROG}: error: {e}", file=sys.stderr)
+        print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])
     print(f"{PROG}: {len(index['figures'])} figures ({n_files} files) in {out}")

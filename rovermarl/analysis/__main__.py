@@ -32,7 +32,7 @@ from pathlib import Path
 
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
-from rovermarl.errors import ConfigError
+from rovermarl.errors import ConfigError, printable
 
 PROG = "rovermarl.analysis"
 
@@ -99,7 +99,7 @@ def main(argv=None) -> None:
         if args.command == "export":
             from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6,
-                   log=lambda m: print(f"{PROG}: {m}", file=sys.stderr), trust=args.trust)
+                   log=_say, trust=args.trust)
         elif args.command == "claims":
             from rovermarl.analysis.claims import claims
             text, _ = claims(args.results, args.trust)
@@ -110,7 +110,7 @@ def main(argv=None) -> None:
             _baselines(args.action, args.paths)
         elif args.command == "heldout":
             from rovermarl.analysis.heldout import merge
-            merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+            merge(args.sweep, args.results, log=_say)
         elif args.command == "radius":
             from rovermarl.analysis.radius import report as radius_report
             print(radius_report(args.results), end="")
@@ -127,8 +127,13 @@ def main(argv=None) -> None:
             text, _ = selectors(args.results, args.against, args.x, args.trust)
             print(text, end="")
     except (ResultsError, SweepError, ConfigError, OSError) as e:   # ConfigError: a config refused; OSError: a file
-        print(f"{PROG}: error: {e}", file=sys.stderr)
+        print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
+
+
+def _say(message) -> None:
+    """One line on stderr; what it quotes from files escaped (:func:`rovermarl.errors.printable`)."""
+    print(f"{PROG}: {printable(message, 2000)}", file=sys.stderr)
 
 
 def _verify(path: Path, trust: bool) -> None:
@@ -136,7 +141,7 @@ def _verify(path: Path, trust: bool) -> None:
 
     checked = verify(path, trust)
     for c in checked:
-        print(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}")
+        print(printable(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}", 2000))
     bad = sum(not c.ok for c in checked)
     if bad:
         print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)
@@ -155,7 +160,7 @@ def _baselines(action: str, paths: list[Path]) -> None:
 
     _paths("baselines", action, paths)
     if action == "export":
-        baselines.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        baselines.export(paths[0], paths[1], log=_say)
     elif action == "done":
         print("".join(f"{setup} {method}\n" for setup, method in baselines.done(paths[0])), end="")
     elif action == "figures":
@@ -169,7 +174,7 @@ def _readings(action: str, paths: list[Path]) -> None:
 
     _paths("readings", action, paths)
     if action == "export":
-        readings.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        readings.export(paths[0], paths[1], log=_say)
     elif action == "lifting":
         print("\n".join(readings.lifting(paths[0])))
     else:

@@ -33,10 +33,14 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
         done = Path(sweep) / name / "summary.json"
         if not done.is_file():
             continue
-        committed, recomputed = read_json(path), read_json(done)
-        want, got = committed["final_score"], recomputed.get("final_score", {})
+        try:
+            committed, recomputed = read_json(path, kind="summary"), read_json(done, kind="summary")
+        except OSError as e:                            # refused (safe_read): one line, the other jobs go on
+            log(f"{e}; skipped")
+            continue
+        want, got = committed.get("final_score") or {}, recomputed.get("final_score") or {}
         held = recomputed.get("heldout_score") or {}
-        if set(got) != set(want) or set(held) != set(want):
+        if not want or set(got) != set(want) or set(held) != set(want):
             log(f"{name}: {len(got)} of {len(want)} runs recomputed: skipped")
             continue
         for seed, value in want.items():

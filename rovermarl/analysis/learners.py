@@ -73,7 +73,7 @@ def cells(results: Path) -> dict[tuple[str, str], Cell]:
         key = classify(job.name)
         if key is None:
             continue
-        summary = read_json(job / "summary.json")
+        summary = read_json(job / "summary.json", kind="summary")
         per = int(summary.get("agent_steps_per_generation") or 960 * float(summary.get("evals_per_generation", 1)))
         ex = read_exported(job, len(summary["seeds"]), int(summary["generations"]))
         c = ex.curves
