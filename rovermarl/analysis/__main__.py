@@ -8,7 +8,8 @@
 - ``selectors RESULTS_DIR [--against METHOD] [--x evals] [--trust-config]``: the k-selector (or any method) comparison;
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
-  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
+  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``); ``heldout done JOB_DIR``: exit 0 if the job's
+  summary (read through :mod:`rovermarl.record.safe_read`) has them.
 - ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and
   held-out ones; one line per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
@@ -71,9 +72,10 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("paths", type=Path, nargs="+",
                    help="export: SWEEP_DIR RESULTS_DIR; done, report, figures: RESULTS_DIR")
     h = sub.add_parser("heldout", help="add recomputed runs' held-out scores to committed compact results")
-    h.add_argument("action", choices=("merge",))
-    h.add_argument("sweep", type=Path, help="the sweep dir of launchers/heldout.sh, e.g. outputs/heldout/paper")
-    h.add_argument("results", type=Path, help="the compact results, e.g. results/paper")
+    h.add_argument("action", choices=("merge", "done"))
+    h.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
+                   "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
+                   "has held-out scores)")
     v = sub.add_parser("verify", help="re-score every committed final team; exit 1 on any difference")
     v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
     _trust(v)
@@ -109,8 +111,7 @@ def main(argv=None) -> None:
         elif args.command == "baselines":
             _baselines(args.action, args.paths)
         elif args.command == "heldout":
-            from rovermarl.analysis.heldout import merge
-            merge(args.sweep, args.results, log=_say)
+            _heldout(args.action, args.paths)
         elif args.command == "radius":
             from rovermarl.analysis.radius import report as radius_report
             print(radius_report(args.results), end="")
@@ -145,6 +146,18 @@ def _verify(path: Path, trust: bool) -> None:
     bad = sum(not c.ok for c in checked)
     if bad:
         print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)
+        sys.exit(1)
+
+
+def _heldout(action: str, paths: list[Path]) -> None:
+    from rovermarl.analysis import heldout
+
+    if len(paths) != (2 if action == "merge" else 1):
+        print(f"{PROG}: error: heldout {action} takes {2 if action == 'merge' else 1} path(s)", file=sys.stderr)
+        sys.exit(2)
+    if action == "merge":
+        heldout.merge(paths[0], paths[1], log=_say)
+    elif not heldout.done(paths[0]):
         sys.exit(1)
 
 

@@ -21,6 +21,14 @@ from rovermarl.record.outputs import atomic_open, write_json
 from rovermarl.record.safe_read import check_tree, read_json
 
 
+def done(job: Path) -> bool:
+    """Whether the job dir ``job``'s summary.json has held-out scores (False if it is refused: it is recomputed)."""
+    try:
+        return bool(read_json(Path(job) / "summary.json", kind="summary").get("heldout_score"))
+    except (OSError, AttributeError):
+        return False
+
+
 def merge(sweep: Path, results: Path, log=print) -> list[str]:
     """Add the held-out scores and final teams of ``sweep``'s finished jobs to the same-named jobs of ``results``;
     returns the names of the jobs updated. A job whose recomputed final scores differ from the committed ones is
