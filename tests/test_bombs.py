@@ -175,7 +175,7 @@ def test_a_doctored_checkpoint_is_ignored_in_one_line_and_the_run_starts_afresh(
 SWEEP2 = ("-m", "k=1,2", "setup=duo", "generations=30", "seeds=1", "parallel=serial")
 BOMBED, OTHER = "generations=30,k=1,setup=duo", "generations=30,k=2,setup=duo"
 ALIAS_BOMB = "a: &a [x,x,x,x,x,x,x,x,x]\n" + "".join(
-    f"{n}: &{n} [{','.join([f'*{p}'] * 9)}]\n" for p, n in zip("abcdefgh", "bcdefghi"))     # 9**9 x when expanded
+    f"{n}: &{n} [{','.join([f'*{p}'] * 9)}]\n" for p, n in zip("abcdefgh", "bcdefghi", strict=True))   # 9**9 x expanded
 
 
 def _summary_text(text: str):
@@ -200,7 +200,7 @@ BOMBS = {   # name: (file under the job dir, edit of its text, what the one line
     "seeds as strings": ("summary.json", _summary_edit("seeds", ["0"]), "seeds[0]"),
     "a list for a score": ("summary.json", _summary_edit("median_final_score", [1, 2]), "median_final_score"),
     "k of 5,000 digits": (".hydra/config.yaml", _config_line("  value: 1\n", "  value: " + "7" * 5000 + "\n"),
-                          "digits"),
+                          "5000 digits (line"),
     "env.steps=1e8": (".hydra/config.yaml", _config_line("  steps: 15\n", "  steps: 100000000\n"), "env.steps"),
     "n_rovers=1e6": (".hydra/config.yaml", _config_line("  n_rovers: 4\n", "  n_rovers: 1000000\n"), "env.n_rovers"),
     "NaN score": ("summary.json", lambda old: old.replace('"median_final_score": ', '"median_final_score": NaN, '

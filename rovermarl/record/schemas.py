@@ -28,6 +28,7 @@ DEPTH = 64                    # nesting levels (a summary has 4)
 BIG = 1 << 63                 # integers: within 64 bits
 REFERENCES = 64               # interpolations in one config (the packaged ones make 10)
 RUNS = 100_000                # runs of a job, seeds of a summary
+_LONG = re.compile(r"[-+]?[\d_]{20,}")                     # a plain YAML integer past 64 bits
 _REFERENCE = re.compile(r"\$\{([A-Za-z_][\w]*(?:\.[A-Za-z_][\w]*)*)\}")
 
 
@@ -58,6 +59,9 @@ def parse_yaml(text: str, where, kind: str | None = None):
                 raise Invalid(f"{where} holds a YAML alias or anchor: refused (a results dir's YAML has none)")
             if isinstance(event, yaml.NodeEvent) and event.tag:
                 raise Invalid(f"{where} holds a YAML tag {printable(event.tag, 60)}: refused")
+            if isinstance(event, yaml.ScalarEvent) and event.style is None and _LONG.fullmatch(event.value):
+                line = event.start_mark.line + 1
+                raise Invalid(f"{where} holds an integer of {len(event.value)} digits (line {line}): past 64 bits")
             depth += isinstance(event, yaml.CollectionStartEvent) - isinstance(event, yaml.CollectionEndEvent)
             if depth > DEPTH:
                 raise Invalid(f"{where} is nested deeper than {DEPTH} levels")
