@@ -18,6 +18,7 @@ from pathlib import Path
 from hydra.experimental.callback import Callback
 
 from rovermarl.analysis.levels import THRESHOLDS
+from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
 from rovermarl.errors import Printable, printable
 
@@ -86,7 +87,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             return
         from rovermarl.analysis.figures import plot_sweep
         index = plot_sweep(args.path, out, log=log, **kwargs)
-    except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
+    except (SweepError, ResultsError, OSError) as e:        # OSError: a link, FIFO or corrupt file refused
         print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])

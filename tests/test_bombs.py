@@ -278,3 +278,17 @@ def test_an_invocations_log_over_64_mb_is_read_in_chunks(sweep2, tmp_path):
         f.write('{"wall_time_s": NaN, "team_evals": 2}\n')
     proc = run_cli("export", str(sw), str(tmp_path / "out2"), "--no-fig6", module="rovermarl.analysis", timeout=60)
     assert proc.returncode == 2 and _named_once(proc, f"invocations.jsonl: line {n + 1}", "NaN")
+
+
+@pytest.mark.parametrize("command", [("selectors",), ("claims",), ("plot",)])
+def test_a_bomb_in_committed_results_is_one_line(tmp_path, command):
+    results = tmp_path / "paper"
+    shutil.copytree(ROOT / "results" / "paper", results, ignore=shutil.ignore_patterns("figures"))
+    (results / BOMBED.replace("30", "200000") / "config.yaml").write_text(ALIAS_BOMB)
+    if command == ("plot",):
+        proc = run_cli(str(results), "--out", str(tmp_path / "figures"), "--format", "png", module="rovermarl.plot",
+                       timeout=60)
+    else:
+        proc = run_cli(*command, str(results), module="rovermarl.analysis", timeout=60)
+    line = _named_once(proc, "config.yaml", "holds a YAML alias or anchor: refused")
+    assert proc.returncode == 2 and line.endswith(": refused (a results dir's YAML has none)"), line
