@@ -244,7 +244,7 @@ def test_a_bomb_or_wrong_type_in_a_results_file_is_one_line_and_the_other_jobs_g
     assert export.returncode == 0 and _named_once(export, where, what)
     assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.is_dir()) == [OTHER]    # nothing copied
     verify = run_cli("verify", str(sw), module="rovermarl.analysis", timeout=60)
-    assert verify.returncode == 1 and _named_once(verify, where, what).startswith(f"DIFFERS  {BOMBED}: ")
+    assert verify.returncode == 2 and _named_once(verify, where, what).startswith("rovermarl.analysis: error: ")
     assert f"ok  {OTHER}: 1 teams re-score" in verify.stdout
     if name == "summary.json":
         merge = run_cli("heldout", "merge", str(sw), str(sweep2), module="rovermarl.analysis", timeout=60)

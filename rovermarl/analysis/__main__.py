@@ -11,7 +11,8 @@
   (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``); ``heldout done JOB_DIR``: exit 0 if the job's
   summary (read through :mod:`rovermarl.record.safe_read`) has them.
 - ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and
-  held-out ones; one line per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
+  held-out ones; one line per job, exit 1 on any difference, 2 if a job's files or config were refused (its line
+  on stderr; the other jobs are verified) (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
   (:mod:`rovermarl.analysis.radius`).
 - ``learners RESULTS_DIR [--doc docs/LEARNERS.md]``: the learners study's section of docs/LEARNERS.md and its
@@ -142,7 +143,12 @@ def _verify(path: Path, trust: bool) -> None:
 
     checked = verify(path, trust)
     for c in checked:
-        print(printable(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}", 2000))
+        if c.refused:                                    # one line on stderr, then the other jobs
+            print(f"{PROG}: error: {printable(c.line, 2000)}", file=sys.stderr)
+        else:
+            print(printable(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}", 2000))
+    if any(c.refused for c in checked):
+        sys.exit(2)
     bad = sum(not c.ok for c in checked)
     if bad:
         print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)

@@ -33,6 +33,7 @@ class Checked:
     job: str
     ok: bool
     line: str
+    refused: bool = False              # its files or config were refused: not re-scored
 
 
 def _config(job: Path, trust: bool = False) -> dict:
@@ -119,9 +120,9 @@ def verify(path: Path, trust: bool = False) -> list[Checked]:
 
 
 def _verified(job: Path, trust: bool) -> Checked:
-    """:func:`verify_job`, or a job that fails with the one line of what its files or config lack: the other jobs
-    are still verified."""
+    """:func:`verify_job`, or a job refused with the one line of what its files or config lack: the other jobs are
+    still verified."""
     try:
         return verify_job(job, trust)
     except (ResultsError, ValueError, OSError) as e:      # a file refused (safe_read), a config refused (ConfigError)
-        return Checked(job.name, False, str(e))
+        return Checked(job.name, False, str(e), refused=True)
