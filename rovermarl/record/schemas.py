@@ -8,8 +8,9 @@
   ``overrides``): the types and ranges of the fields a reader uses (``env.steps``, ``episodes``, ``n_rovers``,
   ``seeds``, ``k``, ``generations``, ...; a string or a list where a number belongs is refused); other fields pass
   with the parse's checks only;
-- a config's interpolations: only plain references (``${policy.init_low}``) to a value or to a node free of
-  interpolations, at most :data:`REFERENCES` of them, so resolving one cannot run a resolver or multiply a node;
+- a config's interpolations: only plain references (``${policy.init_low}``, or a chain of them) to a value or to a
+  node free of interpolations, at most :data:`REFERENCES` of them, so resolving one cannot run a resolver or
+  multiply a node;
   the schema checks the config as resolved.
 
 Each failure is :class:`Invalid`, one line naming the file and the field.
@@ -98,13 +99,13 @@ def checked(value, where, kind: str | None = None):
 
 
 def resolved(config):
-    """``config`` with each plain reference replaced by what it names; :class:`Invalid` for any other
-    interpolation, a reference to nothing, to another interpolation or to a node holding one, or too many."""
+    """``config`` with each plain reference replaced by what it names (through a chain of references); :class:`Invalid`
+    for any other interpolation, a reference to nothing or to a node holding one, or too many."""
     refs = [(p, s) for p, s in _strings(config, "") if "${" in s]
     if len(refs) > REFERENCES:
         raise Invalid(f"{refs[0][0]}: {len(refs)} interpolations, more than the {REFERENCES} a config may have")
 
-    def look(path: str, text: str):
+    def look(path: str, text: str, hops: int = 0):
         m = _REFERENCE.fullmatch(text)
         if m is None:
             raise Invalid(f"{path}: {printable(text, 60)!r} is not a plain reference like ${{policy.init_low}}")
@@ -113,8 +114,10 @@ def resolved(config):
             if not isinstance(node, dict) or part not in node:
                 raise Invalid(f"{path}: {text} names nothing in the config")
             node = node[part]
+        if isinstance(node, str) and "${" in node and hops < REFERENCES:         # a chain: ${mutation} -> ${payload}
+            return look(path, node, hops + 1)
         if any("${" in s for _, s in _strings(node, "")):
-            raise Invalid(f"{path}: {text} names another interpolation")
+            raise Invalid(f"{path}: {text} names a node that holds an interpolation, or a chain of them")
         return node
 
     def walk(node, path):
