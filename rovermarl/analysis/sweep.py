@@ -301,7 +301,7 @@ def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job]
     notes: list[str] = []
     jobs = [job for d in sorted(dirs) if (job := load_job(d, notes)) is not None]
     if not jobs:
-        raise SweepError(f"no readable job under {path}: {notes[0]}" if notes else
+        raise SweepError(f"no readable run under {path}: {notes[0]}" if notes else
                          f"no readable run under {path} ({len(dirs)} job dirs, none with a runs/seed_*/curve.npz)")
     return sorted(jobs, key=Job.sort_key), notes
 
