@@ -132,7 +132,7 @@ class PlotCallback(Callback):
             index = plot_sweep(sweep, only=own_jobs(config, sweep), **kwargs)   # this launch's jobs: trusted
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
-            log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, " ".join(str(e).split()))
+            log.warning("no figures for sweep %s: %s: %s", printable(sweep), type(e).__name__, printable(e, 2000))
 
 
 def own_jobs(config, sweep: Path) -> list[Path]:
