@@ -314,6 +314,18 @@ def test_heldout_launcher_takes_no_override_from_a_dir_name(tmp_path, attack):
     assert not marker.exists()
 
 
+def test_heldout_done_reads_the_summary_through_the_safe_reader(tmp_path):
+    job = _compact_job(tmp_path, "job")
+    done = lambda: run_cli("heldout", "done", str(job), module="rovermarl.analysis", timeout=60)  # noqa: E731
+    assert done().returncode == 1
+    summary = json.loads((job / "summary.json").read_text())
+    (job / "summary.json").write_text(json.dumps({**summary, "heldout_score": {"0": 1.0}}))
+    assert done().returncode == 0
+    (job / "summary.json").write_text("[" * 200_000 + "]" * 200_000)
+    proc = done()
+    assert proc.returncode == 1 and proc.stderr == "", proc.stderr[-2000:]     # refused: recomputed, no traceback
+
+
 @pytest.mark.parametrize("override, dropped", [("+hydra.callbacks.pwn._target_=res.pwn.X", False),
                                                ("ray.address=127.0.0.1:46379", True),
                                                ("env.steps=${oc.env:HOME}", False)])
