@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Held-out scores and final teams for compact results committed before those features (issues 33 and 43): every job
 # of RESULTS (default results/paper; also results/selectors, results/geometry) whose dir name matches JOBS (a shell
-# pattern, default *) is recomputed from its own overrides (its dir name) into OUT, one job at a time on the embedded
+# pattern, default *) is recomputed from its own overrides (`python -m rovermarl.config JOB_DIR`: read from its
+# config.yaml and summary.json and allow-listed, never from its dir name) into OUT, one job at a time on the embedded
 # Ray, then `python -m rovermarl.analysis heldout merge OUT RESULTS` adds each run's held-out score to the committed
 # summary.json and the runs' final teams as genomes.npz, after checking that every recomputed run ends at the
 # committed final score. Resumable, also across sessions: a job of RESULTS with held-out scores and genomes.npz is
@@ -18,12 +19,18 @@ JOBS="${JOBS:-*}"
 for summary in "$RESULTS"/$JOBS/summary.json; do
     [ -f "$summary" ] || continue
     name="$(basename "$(dirname "$summary")")"
-    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" -c \
-        'import json, sys; sys.exit(0 if json.load(open(sys.argv[1])).get("heldout_score") else 1)' "$summary"; then
-        echo "$(basename "$0"): $name has held-out scores and final teams: skipped" >&2
+    shown="${name@Q}"                                                     # a name's control characters escaped
+    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" -m rovermarl.analysis heldout done "$RESULTS/$name"; then
+        echo "$(basename "$0"): $shown has held-out scores and final teams: skipped" >&2
         continue
     fi
-    IFS=, read -r -a overrides <<< "$name"
+    # the job's overrides from its own files (config.yaml, summary.json), each allow-listed; never from its name
+    if ! listed="$("$PYTHON" -m rovermarl.config "$RESULTS/$name")"; then
+        echo "$(basename "$0"): $shown: its overrides cannot be read (above): skipped" >&2
+        continue
+    fi
+    overrides=()
+    [ -z "$listed" ] || mapfile -t overrides <<< "$listed"
     "$PYTHON" -m rovermarl.train "${overrides[@]}" "seeds=$SEEDS" "hydra.run.dir='$OUT/$name'" "$@"   # quoted: = and ,
     "$PYTHON" -m rovermarl.analysis heldout merge "$OUT" "$RESULTS"
 done

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 
 class ConfigError(ValueError):
     """A config value is invalid. ``str(err)`` is ``"key=value: requirement"``."""
@@ -115,3 +117,20 @@ def plugin_homes(cfg) -> list[str]:
             elif not isinstance(value, (str, int, float, bool, type(None))):
                 todo.append(value)
     return out
+
+
+def printable(value, most: int = 300) -> str:
+    """``value`` as text fit for one terminal line: every control character (escape, newline, carriage return, ...)
+    and every other unprintable one escaped as Python writes it (``\\x1b``, ``\\n``), cut to ``most`` characters.
+    Every string read from a file passes through it before it is printed."""
+    text = str(value)
+    text = text if len(text) <= most else text[:most] + "..."
+    return text if text.isprintable() else "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+class Printable(logging.Formatter):
+    """A log formatter whose lines are :func:`printable`: a message quoting a file never writes a raw control
+    character (no retitled terminal, no forged second line)."""
+
+    def format(self, record: logging.LogRecord) -> str:
+        return printable(super().format(record), 20_000)

@@ -18,7 +18,9 @@ from pathlib import Path
 from hydra.experimental.callback import Callback
 
 from rovermarl.analysis.levels import THRESHOLDS
+from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
+from rovermarl.errors import Printable, printable
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
@@ -71,7 +73,9 @@ def main(argv: Sequence[str] | None = None) -> None:
     args = parser().parse_args(argv)
     if args.update_gen is not None and args.update_run is None:
         parser().error("--update-gen needs --update-run")
-    logging.basicConfig(level=logging.INFO, format=f"{PROG}: %(message)s", stream=sys.stderr)
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(Printable(f"{PROG}: %(message)s"))               # what a file holds, escaped
+    logging.basicConfig(level=logging.INFO, handlers=[handler])
     out = args.out if args.out is not None else default_out(args.path)
     kwargs = {"thresholds": dict(args.threshold), "formats": args.formats, "update_run": args.update_run,
               "update_gen": args.update_gen, "xscale": args.xscale, "x": args.x, "trust": args.trust}
@@ -83,8 +87,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             return
         from rovermarl.analysis.figures import plot_sweep
         index = plot_sweep(args.path, out, log=log, **kwargs)
-    except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
-        print(f"{PROG}: error: {e}", file=sys.stderr)
+    except (SweepError, ResultsError, OSError) as e:        # OSError: a link, FIFO or corrupt file refused
+        print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])
     print(f"{PROG}: {len(index['figures'])} figures ({n_files} files) in {out}")
@@ -128,7 +132,7 @@ class PlotCallback(Callback):
             index = plot_sweep(sweep, only=own_jobs(config, sweep), **kwargs)   # this launch's jobs: trusted
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
-            log.warning("no figures for sweep %s: %s: %s", sweep, type(e).__name__, " ".join(str(e).split()))
+            log.warning("no figures for sweep %s: %s: %s", printable(sweep), type(e).__name__, printable(e, 2000))
 
 
 def own_jobs(config, sweep: Path) -> list[Path]:

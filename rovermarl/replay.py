@@ -31,7 +31,7 @@ import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from rovermarl.errors import ConfigError
+from rovermarl.errors import ConfigError, printable
 
 
 class ReplayError(Exception):
@@ -76,7 +76,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     cfg_path = next((p for p in (job / ".hydra" / "config.yaml", job / "config.yaml") if p.exists()), None)
     if cfg_path is None or not (run / "genomes.npy").exists():
         raise ReplayError(f"{run}: --resim needs genomes.npy and the job's .hydra/config.yaml (or config.yaml)")
-    config = read_yaml(cfg_path)
+    config = read_yaml(cfg_path, kind="config")
     try:
         world = World.from_config(OmegaConf.create(config if isinstance(config, dict) else {}), trust)
     except ConfigError as e:
@@ -266,7 +266,7 @@ def main(argv: list[str] | None = None) -> None:
         open_viewer(rrd, viewer=not a.no_viewer, web=a.web, web_port=a.web_port, grpc_port=a.grpc_port, bind=a.bind)
     except (ReplayError, OSError, ValueError, KeyError, yaml.YAMLError, OmegaConfBaseException) as e:
         what = "" if isinstance(e, (ReplayError, OSError)) else f"{a.path}: unreadable run or job files: "
-        print(f"rovermarl.replay: error: {what}{' '.join(str(e).split())}", file=sys.stderr)
+        print(f"rovermarl.replay: error: {what}{printable(' '.join(str(e).split()), 2000)}", file=sys.stderr)
         sys.exit(2)
 
 

@@ -265,3 +265,122 @@ def test_a_python_tag_in_a_config_file_is_one_line(tmp_path):
                    "parallel=serial", f"hydra.run.dir={tmp_path / 'run'}")
     assert not marker.exists()
     assert "ConstructorError" in _one_line(proc)
+
+
+# ---- issue 51, the read side: a name is only a name; what a file holds reaches the terminal escaped -----------------
+EVIL_NAMES = {"code": "generations=20,k=1,setup=solo,+hydra.callbacks.pwn._target_=res.pwn.X",
+              "connect": "generations=20,k=1,setup=solo,ray.address=127.0.0.1:46379"}
+# Stands in for Python: a train command is only recorded (its arguments are the attack), the rest runs for real.
+LOGGING_PYTHON = """#!/usr/bin/env bash
+if [ "$1 $2" = "-m rovermarl.train" ]; then printf '%s\\n' "$@" > "$TRAIN_ARGS"; exit 0; fi
+exec {python} "$@"
+"""
+
+
+def _compact_job(results, name, **choices):
+    """A compact results job dir ``results/name``: the config.yaml of setup=solo generations=20, its summary."""
+    from omegaconf import OmegaConf
+
+    from rovermarl.config import compose_config
+    job = results / name
+    job.mkdir(parents=True)
+    (job / "config.yaml").write_text(OmegaConf.to_yaml(compose_config("setup=solo", "generations=20")))
+    (job / "summary.json").write_text(json.dumps({"choices": {"setup": "solo", "k": "1", **choices},
+                                                  "final_score": {"0": 1.0}, "seeds": [0]}))
+    return job
+
+
+@pytest.mark.parametrize("attack", sorted(EVIL_NAMES))
+def test_heldout_launcher_takes_no_override_from_a_dir_name(tmp_path, attack):
+    marker = tmp_path / "PWNED"
+    (tmp_path / "res").mkdir()
+    _plant(tmp_path / "res", marker)                                    # res/pwn.py, importable from the cwd
+    _compact_job(tmp_path / "results" / "evil", EVIL_NAMES[attack])
+    python = tmp_path / "python"
+    python.write_text(LOGGING_PYTHON.format(python=sys.executable))
+    python.chmod(0o755)
+    args = tmp_path / "train_args"
+    env = {**os.environ, **ENV, "PYTHON": str(python), "TRAIN_ARGS": str(args), "RESULTS": "results/evil",
+           "OUT": str(tmp_path / "out"), "SEEDS": "1"}
+    proc = subprocess.run(["bash", str(ROOT / "launchers" / "heldout.sh")], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    if attack == "connect":                                             # ':' is no part of a job's name
+        assert not args.exists() and "must be a directory whose name is" in proc.stderr, proc.stderr
+    else:
+        train = args.read_text().splitlines()
+        run_dir = f"hydra.run.dir='{tmp_path / 'out' / EVIL_NAMES[attack]}'"      # the name as a path, quoted
+        assert train == ["-m", "rovermarl.train", "generations=20", "seeds=1", run_dir], train  # from config.yaml
+    assert not marker.exists()
+
+
+def test_heldout_done_reads_the_summary_through_the_safe_reader(tmp_path):
+    job = _compact_job(tmp_path, "job")
+    done = lambda: run_cli("heldout", "done", str(job), module="rovermarl.analysis", timeout=60)  # noqa: E731
+    assert done().returncode == 1
+    summary = json.loads((job / "summary.json").read_text())
+    (job / "summary.json").write_text(json.dumps({**summary, "heldout_score": {"0": 1.0}}))
+    assert done().returncode == 0
+    (job / "summary.json").write_text("[" * 200_000 + "]" * 200_000)
+    proc = done()
+    assert proc.returncode == 1 and proc.stderr == "", proc.stderr[-2000:]     # refused: recomputed, no traceback
+
+
+@pytest.mark.parametrize("override, dropped", [("+hydra.callbacks.pwn._target_=res.pwn.X", False),
+                                               ("ray.address=127.0.0.1:46379", True),
+                                               ("env.steps=${oc.env:HOME}", False)])
+def test_a_jobs_hydra_overrides_are_allow_listed(sweep, tmp_path, override, dropped):
+    sw = _copy(sweep, tmp_path)
+    path = sw / JOB / ".hydra" / "overrides.yaml"
+    path.write_text(yaml.safe_dump([*yaml.safe_load(path.read_text()), override]))
+    proc = run_cli(str(sw / JOB), module="rovermarl.config", timeout=60)
+    if dropped:
+        assert proc.returncode == 0 and "ray" not in proc.stdout, proc.stdout + proc.stderr
+        assert sorted(proc.stdout.split()) == ["generations=30", "k='1'", "setup=duo"]
+    else:
+        assert "is not a plain KEY=VALUE" in _one_line(proc)
+
+
+def test_verify_skips_the_run_dirs_a_relaunch_set_aside(sweep, tmp_path):
+    sw = _copy(sweep, tmp_path)
+    shutil.copytree(sw / JOB / "runs" / "seed_000", sw / JOB / "runs" / "seed_000.0123456789ab")
+    proc = run_cli("verify", str(sw), module="rovermarl.analysis", timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stdout + proc.stderr
+    assert proc.stdout.startswith(f"ok  {JOB}: 1 teams re-score"), proc.stdout
+
+
+def test_export_refuses_a_summary_of_another_generation_of_the_runs(sweep, tmp_path):
+    """A relaunch rewriting a job: its old summary.json beside a new curve. Export pairs neither."""
+    sw = _copy(sweep, tmp_path)
+    path = sw / JOB / "summary.json"
+    summary = json.loads(path.read_text())
+    summary["final_score"]["0"] += 1.0
+    path.write_text(json.dumps(summary))
+    proc = run_cli("export", str(sw), str(tmp_path / "out"), "--no-fig6", module="rovermarl.analysis", timeout=120)
+    assert "not the same generation of the run" in _one_line(proc)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("seeds", [[0], ["0"]])
+def test_strings_from_files_reach_the_terminal_escaped(sweep, tmp_path, seeds):
+    """A choices.setup with an escape sequence (retitles a terminal) and a newline (forges a line) is printed
+    escaped: in plot's note on the setup, and in the line that refuses the file (seeds of strings)."""
+    sw = _copy(sweep, tmp_path)
+    path = sw / JOB / "summary.json"
+    summary = json.loads(path.read_text())
+    summary["choices"]["setup"], summary["seeds"] = "\x1b]0;pwned\x07\nrovermarl.plot: forged", seeds
+    path.write_text(json.dumps(summary))
+    proc = run_cli(str(sw), "--format", "png", module="rovermarl.plot", timeout=120)
+    out = proc.stdout + proc.stderr
+    assert "\x1b" not in out and "\x07" not in out and "Traceback" not in out, out
+    assert not any(line.startswith("rovermarl.plot: forged") for line in out.splitlines()), out
+    if seeds == [0]:
+        assert "note: \\x1b]0;pwned\\x07\\nrovermarl.plot: forged: no threshold" in out, out
+    else:
+        assert "seeds[0] is '0', not an integer; job skipped" in _one_line(proc)
+
+
+def test_every_string_printed_from_a_file_is_escaped_by_one_helper():
+    from rovermarl.errors import printable
+    assert printable("a\x1b]0;t\x07\nrovermarl.plot: x\r\u202e") == "a\\x1b]0;t\\x07\\nrovermarl.plot: x\\r\\u202e"
+    assert printable("plain k=1, setup=duo") == "plain k=1, setup=duo"

@@ -167,3 +167,128 @@ def test_a_doctored_checkpoint_is_ignored_in_one_line_and_the_run_starts_afresh(
     warned = [x for x in proc.stderr.splitlines() if x.startswith("WARNING")]
     assert len(warned) == 1 and "checkpoint.bin" in warned[0] and "starts from scratch" in warned[0], proc.stderr
     assert json.loads(proc.stdout) == want["final_score"]
+
+
+# ---- issue 51: bombs and wrong types in the json and yaml a reader parses -------------------------------------------
+# Each is planted in the first job of a two-job sweep; plot, export, verify and heldout merge end within 60 s, say
+# one line naming the file (and the field), and go on with the other job; replay --resim refuses in one line.
+SWEEP2 = ("-m", "k=1,2", "setup=duo", "generations=30", "seeds=1", "parallel=serial")
+BOMBED, OTHER = "generations=30,k=1,setup=duo", "generations=30,k=2,setup=duo"
+ALIAS_BOMB = "a: &a [x,x,x,x,x,x,x,x,x]\n" + "".join(
+    f"{n}: &{n} [{','.join([f'*{p}'] * 9)}]\n" for p, n in zip("abcdefgh", "bcdefghi", strict=True))   # 9**9 x expanded
+
+
+def _summary_text(text: str):
+    return lambda old: text
+
+
+def _summary_edit(key, value):
+    def edit(old: str) -> str:
+        data = json.loads(old)
+        data[key] = value
+        return json.dumps(data)
+    return edit
+
+
+def _config_line(old_line: str, new_line: str):
+    return lambda old: old.replace(old_line, new_line, 1)
+
+
+BOMBS = {   # name: (file under the job dir, edit of its text, what the one line names)
+    "yaml alias bomb": (".hydra/config.yaml", lambda old: ALIAS_BOMB, "alias"),
+    "json nested 200,000 deep": ("summary.json", _summary_text("[" * 200_000 + "]" * 200_000), "nested deeper"),
+    "seeds as strings": ("summary.json", _summary_edit("seeds", ["0"]), "seeds[0]"),
+    "a list for a score": ("summary.json", _summary_edit("median_final_score", [1, 2]), "median_final_score"),
+    "k of 5,000 digits": (".hydra/config.yaml", _config_line("  value: 1\n", "  value: " + "7" * 5000 + "\n"),
+                          "5000 digits (line"),
+    "env.steps=1e8": (".hydra/config.yaml", _config_line("  steps: 15\n", "  steps: 100000000\n"), "env.steps"),
+    "n_rovers=1e6": (".hydra/config.yaml", _config_line("  n_rovers: 4\n", "  n_rovers: 1000000\n"), "env.n_rovers"),
+    "NaN score": ("summary.json", lambda old: old.replace('"median_final_score": ', '"median_final_score": NaN, '
+                                                          '"x": ', 1), "NaN"),
+    "10**400 score": ("summary.json", lambda old: old.replace('"median_final_score": ', '"median_final_score": '
+                                                              + "1" + "0" * 400 + ', "x": ', 1), "401 digits"),
+    "inf score": ("summary.json", lambda old: old.replace('"median_final_score": ', '"median_final_score": 1e400, '
+                                                          '"x": ', 1), "1e400"),
+}
+
+
+@pytest.fixture(scope="module")
+def sweep2(tmp_path_factory):
+    path = tmp_path_factory.mktemp("bombs") / "sweep"
+    proc = run_cli(*SWEEP2, f"hydra.sweep.dir={path}", timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return path
+
+
+def _named_once(proc, where: str, what: str) -> str:
+    """The one line of ``proc``'s output that names ``where``; no traceback."""
+    out = proc.stdout + proc.stderr
+    assert "Traceback" not in out and "RecursionError" not in out, out[-3000:]
+    lines = [x for x in out.splitlines() if where in x]
+    assert len(lines) == 1 and what in lines[0], out[-3000:]
+    return lines[0]
+
+
+@pytest.mark.parametrize("bomb", sorted(BOMBS))
+def test_a_bomb_or_wrong_type_in_a_results_file_is_one_line_and_the_other_jobs_go_on(sweep2, tmp_path, bomb):
+    name, edit, what = BOMBS[bomb]
+    sw = tmp_path / "sweep"
+    shutil.copytree(sweep2, sw)
+    shutil.rmtree(sw / "figures", ignore_errors=True)
+    path = sw / BOMBED / name
+    path.write_text(edit(path.read_text()))
+    where = f"{BOMBED}/{name}"
+    plot = run_cli(str(sw), "--format", "png", module="rovermarl.plot", timeout=60)
+    assert plot.returncode == 0 and _named_once(plot, where, what).endswith("job skipped")
+    export = run_cli("export", str(sw), str(tmp_path / "out"), "--no-fig6", module="rovermarl.analysis", timeout=60)
+    assert export.returncode == 0 and _named_once(export, where, what)
+    assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.is_dir()) == [OTHER]    # nothing copied
+    verify = run_cli("verify", str(sw), module="rovermarl.analysis", timeout=60)
+    assert verify.returncode == 2 and _named_once(verify, where, what).startswith("rovermarl.analysis: error: ")
+    assert f"ok  {OTHER}: 1 teams re-score" in verify.stdout
+    if name == "summary.json":
+        merge = run_cli("heldout", "merge", str(sw), str(sweep2), module="rovermarl.analysis", timeout=60)
+        assert merge.returncode == 0 and _named_once(merge, where, what).endswith("skipped")
+    else:
+        resim = run_cli(str(sw / BOMBED / "runs" / "seed_000"), "--resim", "--no-viewer", module="rovermarl.replay",
+                        timeout=60)
+        assert resim.returncode == 2 and _named_once(resim, where, what).startswith("rovermarl.replay: error: ")
+
+
+def test_a_relaunch_rebuilds_a_summary_nested_200000_deep_in_one_warning(sweep2, tmp_path):
+    sw = tmp_path / "sweep"
+    shutil.copytree(sweep2, sw)
+    (sw / BOMBED / "summary.json").write_text("[" * 200_000 + "]" * 200_000)
+    proc = run_cli(*SWEEP2, f"hydra.sweep.dir={sw}", timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    assert json.loads((sw / BOMBED / "summary.json").read_text())["seeds"] == [0]
+
+
+def test_an_invocations_log_over_64_mb_is_read_in_chunks(sweep2, tmp_path):
+    sw = tmp_path / "sweep"
+    shutil.copytree(sweep2, sw)
+    line = json.dumps({"wall_time_s": 1.0, "team_evals": 2, "pad": "x" * 4000}) + "\n"
+    n = (65 << 20) // len(line) + 1
+    with open(sw / BOMBED / "invocations.jsonl", "w") as f:
+        f.writelines([line] * n)
+    proc = run_cli("export", str(sw), str(tmp_path / "out"), "--no-fig6", module="rovermarl.analysis", timeout=60)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert json.loads((tmp_path / "out" / BOMBED / "summary.json").read_text())["compute"]["launches"] == n
+    with open(sw / BOMBED / "invocations.jsonl", "a") as f:
+        f.write('{"wall_time_s": NaN, "team_evals": 2}\n')
+    proc = run_cli("export", str(sw), str(tmp_path / "out2"), "--no-fig6", module="rovermarl.analysis", timeout=60)
+    assert proc.returncode == 2 and _named_once(proc, f"invocations.jsonl: line {n + 1}", "NaN")
+
+
+@pytest.mark.parametrize("command", [("selectors",), ("claims",), ("plot",)])
+def test_a_bomb_in_committed_results_is_one_line(tmp_path, command):
+    results = tmp_path / "paper"
+    shutil.copytree(ROOT / "results" / "paper", results, ignore=shutil.ignore_patterns("figures"))
+    (results / BOMBED.replace("30", "200000") / "config.yaml").write_text(ALIAS_BOMB)
+    if command == ("plot",):
+        proc = run_cli(str(results), "--out", str(tmp_path / "figures"), "--format", "png", module="rovermarl.plot",
+                       timeout=60)
+    else:
+        proc = run_cli(*command, str(results), module="rovermarl.analysis", timeout=60)
+    line = _named_once(proc, "config.yaml", "holds a YAML alias or anchor: refused")
+    assert proc.returncode == 2 and line.endswith(": refused (a results dir's YAML has none)"), line

@@ -39,7 +39,7 @@ def _tampered_sweep(finished_job, tmp_path):
     pwned = tmp_path / "pwned"
     cfg = yaml.safe_load((job / "config.yaml").read_text())
     cfg["mutation"] = {"_target_": "builtins.open", "file": str(pwned), "mode": "w"}
-    cfg["algorithm"]["mutation"] = cfg["mutation"]
+    cfg["algorithm"]["mutation"] = copy.deepcopy(cfg["mutation"])       # not one object: yaml would alias it
     (job / "config.yaml").write_text(yaml.safe_dump(cfg))
     return job, pwned
 
@@ -67,7 +67,7 @@ def _save(path):
 
 
 def _nested(cfg, pwned):                                  # in an allowed class's arguments
-    cfg["k"]["value"] = _save(pwned)
+    cfg["mutation"]["sigma"] = _save(pwned)
 
 
 def _np_save(cfg, pwned):                                 # a group's class: an attribute chain to numpy.save
@@ -93,7 +93,7 @@ def _unknown_key(cfg, pwned):                             # under a key that is 
 
 
 PAYLOADS = {  # name: (edit, the refused key, its value)
-    "nested k.value": (_nested, "k.value._target_", "rovermarl.train.OmegaConf.save"),
+    "nested mutation.sigma": (_nested, "mutation.sigma._target_", "rovermarl.train.OmegaConf.save"),
     "np.save chain": (_np_save, "mutation._target_", "rovermarl.record.outputs.np.save"),
     "ray.init chain": (_ray_init, "mutation._target_", "rovermarl.parallel.ray_backend.ray.init"),
     "OmegaConf.save chain": (_omegaconf_save, "selection._target_", "rovermarl.train.OmegaConf.save"),
@@ -151,7 +151,7 @@ def test_export_refuses_every_target_but_a_group_class_and_writes_nothing(finish
     assert list(parent.iterdir()) == []                                          # no OUT, no temp dir
 
 
-@pytest.mark.parametrize("name", ["nested k.value", "np.save chain", "OmegaConf.save chain", "in a list",
+@pytest.mark.parametrize("name", ["nested mutation.sigma", "np.save chain", "OmegaConf.save chain", "in a list",
                                   "unknown top-level key"])
 def test_the_payloads_are_live(finished_job, tmp_path, name):
     # trusted, the payloads really write their file (ray.init aside: it would start Ray): the check stops them

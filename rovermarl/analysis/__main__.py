@@ -8,9 +8,11 @@
 - ``selectors RESULTS_DIR [--against METHOD] [--x evals] [--trust-config]``: the k-selector (or any method) comparison;
   ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
 - ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
-  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``).
+  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``); ``heldout done JOB_DIR``: exit 0 if the job's
+  summary (read through :mod:`rovermarl.record.safe_read`) has them.
 - ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and
-  held-out ones; one line per job, exit 1 on any difference (:mod:`rovermarl.analysis.verify`).
+  held-out ones; one line per job, exit 1 on any difference, 2 if a job's files or config were refused (its line
+  on stderr; the other jobs are verified) (:mod:`rovermarl.analysis.verify`).
 - ``radius RESULTS_DIR``: the pre-registered radius study's section of docs/REPRODUCTION.md
   (:mod:`rovermarl.analysis.radius`).
 - ``learners RESULTS_DIR [--doc docs/LEARNERS.md]``: the learners study's section of docs/LEARNERS.md and its
@@ -32,7 +34,7 @@ from pathlib import Path
 
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
-from rovermarl.errors import ConfigError
+from rovermarl.errors import ConfigError, printable
 
 PROG = "rovermarl.analysis"
 
@@ -71,9 +73,10 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("paths", type=Path, nargs="+",
                    help="export: SWEEP_DIR RESULTS_DIR; done, report, figures: RESULTS_DIR")
     h = sub.add_parser("heldout", help="add recomputed runs' held-out scores to committed compact results")
-    h.add_argument("action", choices=("merge",))
-    h.add_argument("sweep", type=Path, help="the sweep dir of launchers/heldout.sh, e.g. outputs/heldout/paper")
-    h.add_argument("results", type=Path, help="the compact results, e.g. results/paper")
+    h.add_argument("action", choices=("merge", "done"))
+    h.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
+                   "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
+                   "has held-out scores)")
     v = sub.add_parser("verify", help="re-score every committed final team; exit 1 on any difference")
     v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
     _trust(v)
@@ -99,7 +102,7 @@ def main(argv=None) -> None:
         if args.command == "export":
             from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6,
-                   log=lambda m: print(f"{PROG}: {m}", file=sys.stderr), trust=args.trust)
+                   log=_say, trust=args.trust)
         elif args.command == "claims":
             from rovermarl.analysis.claims import claims
             text, _ = claims(args.results, args.trust)
@@ -109,8 +112,7 @@ def main(argv=None) -> None:
         elif args.command == "baselines":
             _baselines(args.action, args.paths)
         elif args.command == "heldout":
-            from rovermarl.analysis.heldout import merge
-            merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+            _heldout(args.action, args.paths)
         elif args.command == "radius":
             from rovermarl.analysis.radius import report as radius_report
             print(radius_report(args.results), end="")
@@ -127,8 +129,13 @@ def main(argv=None) -> None:
             text, _ = selectors(args.results, args.against, args.x, args.trust)
             print(text, end="")
     except (ResultsError, SweepError, ConfigError, OSError) as e:   # ConfigError: a config refused; OSError: a file
-        print(f"{PROG}: error: {e}", file=sys.stderr)
+        print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
+
+
+def _say(message) -> None:
+    """One line on stderr; what it quotes from files escaped (:func:`rovermarl.errors.printable`)."""
+    print(f"{PROG}: {printable(message, 2000)}", file=sys.stderr)
 
 
 def _verify(path: Path, trust: bool) -> None:
@@ -136,10 +143,27 @@ def _verify(path: Path, trust: bool) -> None:
 
     checked = verify(path, trust)
     for c in checked:
-        print(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}")
+        if c.refused:                                    # one line on stderr, then the other jobs
+            print(f"{PROG}: error: {printable(c.line, 2000)}", file=sys.stderr)
+        else:
+            print(printable(f"{'ok' if c.ok else 'DIFFERS'}  {c.job}: {c.line}", 2000))
+    if any(c.refused for c in checked):
+        sys.exit(2)
     bad = sum(not c.ok for c in checked)
     if bad:
         print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)
+        sys.exit(1)
+
+
+def _heldout(action: str, paths: list[Path]) -> None:
+    from rovermarl.analysis import heldout
+
+    if len(paths) != (2 if action == "merge" else 1):
+        print(f"{PROG}: error: heldout {action} takes {2 if action == 'merge' else 1} path(s)", file=sys.stderr)
+        sys.exit(2)
+    if action == "merge":
+        heldout.merge(paths[0], paths[1], log=_say)
+    elif not heldout.done(paths[0]):
         sys.exit(1)
 
 
@@ -155,7 +179,7 @@ def _baselines(action: str, paths: list[Path]) -> None:
 
     _paths("baselines", action, paths)
     if action == "export":
-        baselines.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        baselines.export(paths[0], paths[1], log=_say)
     elif action == "done":
         print("".join(f"{setup} {method}\n" for setup, method in baselines.done(paths[0])), end="")
     elif action == "figures":
@@ -169,7 +193,7 @@ def _readings(action: str, paths: list[Path]) -> None:
 
     _paths("readings", action, paths)
     if action == "export":
-        readings.export(paths[0], paths[1], log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+        readings.export(paths[0], paths[1], log=_say)
     elif action == "lifting":
         print("\n".join(readings.lifting(paths[0])))
     else:

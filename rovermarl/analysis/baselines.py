@@ -46,7 +46,7 @@ def export(sweep: Path, out: Path, log=print) -> dict:
         levels = LEVELS.get(job.setup, ())
         runs = {}
         for run in sorted(job.runs, key=lambda r: r.seed):
-            meta = read_json(run.path / "run.json")
+            meta = read_json(run.path / "run.json", kind="run")
             firsts = {str(lv): first_reaching(run.score, lv) for lv in levels}
             runs[str(run.seed)] = {"final": float(run.score[-1]), "heldout": float(meta["heldout_score"]),
                                    "evals_to": {lv: None if g is None else int(job.evals(g))

@@ -27,7 +27,7 @@ def _jobs(results: Path) -> list[dict]:
     """Each job of a study: its overrides parsed from the dir name, its final and held-out scores per run."""
     jobs = []
     for path in sorted(Path(results).glob("*/summary.json")):
-        s = read_json(path)
+        s = read_json(path, kind="summary")
         keys = dict(kv.split("=", 1) for kv in path.parent.name.split(","))
         method = f"k={keys['k']}" if "k" in keys else "homogeneous" if keys.get("team") == "homogeneous" else "k=1"
         jobs.append({"name": path.parent.name, "setup": keys["setup"], "method": method,
@@ -40,7 +40,7 @@ def _jobs(results: Path) -> list[dict]:
 
 
 def _compute(results: Path) -> dict:
-    c = read_json(Path(results) / "compute.json")
+    c = read_json(Path(results) / "compute.json", kind="compute")
     return {"team_evals": int(c["team_evals"]), "wall_time_s": float(c["wall_time_s"]), "jobs": len(c["jobs"])}
 
 

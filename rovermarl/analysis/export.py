@@ -8,7 +8,6 @@ only when everything succeeded (:func:`staged`), so a failure or a refused confi
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import shutil
 from pathlib import Path
@@ -21,7 +20,7 @@ from rovermarl.analysis.rerun import mutated_rovers
 from rovermarl.analysis.results import COUPLING_KINDS, ResultsError
 from rovermarl.analysis.sweep import Job, fig6_job, find_jobs, labels
 from rovermarl.record.outputs import INVOCATIONS, LAUNCH, atomic_open, write_json
-from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_json, read_text
+from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_json, read_jsonl
 from rovermarl.runner.trust import check_targets
 
 
@@ -51,13 +50,12 @@ def compute_of(job: Job) -> dict:
     """Team evaluations and wall time of every launch of the job (``invocations.jsonl``, and the ``launch.json`` of
     a killed launch not relaunched since; else summary.json)."""
     log, killed = job.path / INVOCATIONS, job.path / LAUNCH
-    launches = [json.loads(x) for x in read_text(log).splitlines() if x.strip()] if log.is_file() else []
-    launches += [read_json(killed)] if killed.is_file() else []
+    launches = list(read_jsonl(log, "launch")) if log.is_file() else []   # each line checked: finite, bounded
+    launches += [read_json(killed, kind="launch")] if killed.is_file() else []
     if not launches:                                                     # jobs run before the log existed
-        summary = read_json(job.path / "summary.json")
-        launches = [{"wall_time_s": summary.get("wall_time_s", 0.0), "team_evals": summary.get("team_evals", 0)}]
-    return {"launches": len(launches), "wall_time_s": sum(x["wall_time_s"] for x in launches),
-            "team_evals": sum(x["team_evals"] for x in launches)}
+        launches = [read_json(job.path / "summary.json", kind="summary")]
+    return {"launches": len(launches), "wall_time_s": sum(x.get("wall_time_s", 0.0) for x in launches),
+            "team_evals": sum(x.get("team_evals", 0) for x in launches)}
 
 
 def with_own_steps(compute: dict, summary: dict, world, generations: int) -> dict:
@@ -92,7 +90,8 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
         c = coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)
         if c is not None:
             couplings[str(r.seed)] = c
-    summary = read_json(job.path / "summary.json") if job.finished else {}
+    summary = read_json(job.path / "summary.json", kind="summary") if job.finished else {}
+    _same_generation(job, summary, runs)
     compute = with_own_steps(compute_of(job), summary, world, curves.generations * len(runs))
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
                     "episodes": episodes, "source": job.name, "compute": compute})
@@ -113,6 +112,24 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
     return summary
 
 
+def _same_generation(job: Job, summary: dict, runs) -> None:
+    """:class:`ResultsError` unless ``summary`` (the job's summary.json) is of the same runs as the curves read: the
+    same seeds, each ending at the final score it records (a relaunch that is rewriting the job's runs pairs an old
+    summary with new curves)."""
+    final = summary.get("final_score")
+    if not isinstance(final, dict):
+        return
+    seeds, present = sorted(int(s) for s in final), [r.seed for r in runs]
+    if seeds != present:
+        raise ResultsError(f"{job.path}: summary.json is of seeds {seeds[:8]}, the runs present {present[:8]}; a "
+                           "relaunch may be writing the job: export it once that ends")
+    for r in runs:
+        if float(r.score[-1]) != final[str(r.seed)]:
+            raise ResultsError(f"{job.path}: seed {r.seed} ends at {float(r.score[-1])!r} in its curve, "
+                               f"{final[str(r.seed)]!r} in summary.json (not the same generation of the run); a "
+                               "relaunch may be writing the job: export it once that ends")
+
+
 def final_teams(runs) -> dict | None:
     """Every run's final team, for ``analysis verify`` to re-score: ``seed`` (R,) and ``genomes`` (R, N, P) float64;
     None unless every run wrote its ``genomes.npy``."""
@@ -129,7 +146,7 @@ def _kept_compute(out: Path, replaced: set[str]) -> dict:
     """The compute of ``out``'s jobs that this export leaves in place (from its ``compute.json``): a study exported
     job by job, over several sweeps or sessions, keeps every job's compute."""
     try:
-        jobs = read_json(out / "compute.json").get("jobs", {})
+        jobs = read_json(out / "compute.json", kind="compute").get("jobs", {})
     except (OSError, ValueError, AttributeError):
         return {}
     return {name: c for name, c in jobs.items() if name not in replaced and (out / name / "summary.json").is_file()}

@@ -21,6 +21,14 @@ from rovermarl.record.outputs import atomic_open, write_json
 from rovermarl.record.safe_read import check_tree, read_json
 
 
+def done(job: Path) -> bool:
+    """Whether the job dir ``job``'s summary.json has held-out scores (False if it is refused: it is recomputed)."""
+    try:
+        return bool(read_json(Path(job) / "summary.json", kind="summary").get("heldout_score"))
+    except (OSError, AttributeError):
+        return False
+
+
 def merge(sweep: Path, results: Path, log=print) -> list[str]:
     """Add the held-out scores and final teams of ``sweep``'s finished jobs to the same-named jobs of ``results``;
     returns the names of the jobs updated. A job whose recomputed final scores differ from the committed ones is
@@ -33,10 +41,14 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
         done = Path(sweep) / name / "summary.json"
         if not done.is_file():
             continue
-        committed, recomputed = read_json(path), read_json(done)
-        want, got = committed["final_score"], recomputed.get("final_score", {})
+        try:
+            committed, recomputed = read_json(path, kind="summary"), read_json(done, kind="summary")
+        except OSError as e:                            # refused (safe_read): one line, the other jobs go on
+            log(f"{e}; skipped")
+            continue
+        want, got = committed.get("final_score") or {}, recomputed.get("final_score") or {}
         held = recomputed.get("heldout_score") or {}
-        if set(got) != set(want) or set(held) != set(want):
+        if not want or set(got) != set(want) or set(held) != set(want):
             log(f"{name}: {len(got)} of {len(want)} runs recomputed: skipped")
             continue
         for seed, value in want.items():

@@ -92,7 +92,7 @@ def cells(results: Path) -> dict[tuple[str, str, str], Cell]:
         key = classify(job.name)
         if key is None:
             continue
-        summary = read_json(job / "summary.json")
+        summary = read_json(job / "summary.json", kind="summary")
         if summary.get("train_ic", key[2]) != key[2]:
             raise ResultsError(f"{job}: its name says {key[2]} starts, its summary.json {summary['train_ic']}")
         per = int(summary.get("agent_steps_per_generation") or 960 * float(summary.get("evals_per_generation", 1)))

@@ -70,7 +70,7 @@ def _finals(results: Path) -> dict[str, dict[tuple[str, str], np.ndarray]]:
     for path in sorted(Path(results).glob("*/summary.json")):
         keys = dict(kv.split("=", 1) for kv in path.parent.name.split(","))
         method = "homogeneous" if keys.get("team") == "homogeneous" else f"k={keys.get('k', '1')}"
-        final = safe_read.read_json(path)["final_score"]
+        final = safe_read.read_json(path, kind="summary")["final_score"]
         out.setdefault(keys["env.obs_radius"], {})[(keys["setup"], method)] = np.array(
             [float(final[s]) for s in sorted(final, key=int)])
     return out
@@ -125,7 +125,8 @@ def report(results: Path) -> str:
     else:
         lines.append("No radius reproduces the paper's picture by the four pre-registered criteria: each of "
                      f"{', '.join(RADII)} fails at least one.")
-    c = safe_read.read_json(Path(results) / "compute.json") if (Path(results) / "compute.json").is_file() else {}
+    path = Path(results) / "compute.json"
+    c = safe_read.read_json(path, kind="compute") if path.is_file() else {}
     if c:
         lines.append(f"Compute: {int(c['team_evals']):,} team evaluations ({int(c.get('agent_steps', 0)):,} "
                      f"agent-steps), {float(c['wall_time_s']) / 3600:.2f} h of wall time over {len(c['jobs'])} jobs "

@@ -82,12 +82,12 @@ def export(sweep: Path, out: Path, log=print) -> dict:
     for job in jobs:
         if not job.finished:
             continue
-        summary = read_json(job.path / "summary.json")
+        summary = read_json(job.path / "summary.json", kind="summary")
         world = World.from_config(OmegaConf.merge(OmegaConf.create(job.config), {"env": {"reward": "final"}}))
         size = RunSize.of(job.config, world)
         runs = {}
         for run in sorted(job.runs, key=lambda r: r.seed):
-            meta = read_json(run.path / "run.json")
+            meta = read_json(run.path / "run.json", kind="run")
             runs[str(run.seed)] = {
                 "final": float(run.score[-1]), "final_step": _final_step(world, run.path, size),
                 "heldout": float(meta["heldout_score"]),

@@ -51,7 +51,7 @@ class Result:
 
     def config(self) -> DictConfig:
         """The job's composed config (read safely: a regular file, no tag runs anything)."""
-        return OmegaConf.create(read_yaml(self.path / "config.yaml") or {})
+        return OmegaConf.create(read_yaml(self.path / "config.yaml", kind="config") or {})
 
 
 def load(path: Path) -> list[Result]:
@@ -64,10 +64,10 @@ def load(path: Path) -> list[Result]:
         check_tree(path)
         for curves_file in sorted(path.glob("*/curves.npz")):
             job_dir = curves_file.parent
-            summary = read_json(job_dir / "summary.json")
+            summary = read_json(job_dir / "summary.json", kind="summary")
             if not isinstance(summary, dict):
                 raise ResultsError(f"{job_dir / 'summary.json'} is not a job summary")
-            config = read_yaml(job_dir / "config.yaml") if (job_dir / "config.yaml").exists() else {}
+            config = read_yaml(job_dir / "config.yaml", kind="config") if (job_dir / "config.yaml").exists() else {}
             generations = config.get("generations") if isinstance(config, dict) else None
             e = read_exported(job_dir, len(summary.get("seeds") or []) or None, generations)
             out.append(Result(job_dir.name, str(summary.get("label")), str(summary.get("setup")), summary, e.curves,

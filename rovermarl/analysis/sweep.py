@@ -18,6 +18,7 @@ from omegaconf import OmegaConf
 from rovermarl.analysis.curves import read_exported, read_run_arrays, read_run_curve
 from rovermarl.analysis.levels import setup_rank
 from rovermarl.env import World, make_world
+from rovermarl.errors import printable
 from rovermarl.record.safe_read import RunSize, check_tree, read_json, read_yaml
 
 # Config keys that never tell two methods apart: where and how a job runs, and the setup (figures group by it).
@@ -66,7 +67,7 @@ class Job:
 
     @property
     def setup(self) -> str:
-        return str(self.choices.get("setup") or (self.config.get("setup") or {}).get("name") or "default")
+        return printable(self.choices.get("setup") or (self.config.get("setup") or {}).get("name") or "default", 200)
 
     @property
     def strict(self) -> bool:
@@ -173,18 +174,25 @@ class Job:
         return None
 
 
-def _read_yaml(path: Path):
+def _read_yaml(path: Path, kind: str | None = None, notes: list[str] | None = None):
+    """The YAML of ``path`` checked as ``kind`` (:mod:`rovermarl.record.safe_read`), or None if it is missing or
+    refused (then with one note naming the file and the field)."""
     try:
-        found = read_yaml(path) if path.is_file() else None
-    except OSError:  # a broken, odd or oversized yaml is treated as missing
+        found = read_yaml(path, kind=kind) if path.is_file() else None
+    except OSError as e:
+        if notes is not None:
+            notes.append(str(e))
         return None
     return found if isinstance(found, (dict, list)) else None
 
 
-def _read_json(path: Path) -> dict | None:
+def _read_json(path: Path, notes: list[str] | None = None) -> dict | None:
+    """A job's summary.json, checked, or None (as :func:`_read_yaml`)."""
     try:
-        found = read_json(path) if path.is_file() else None
-    except OSError:
+        found = read_json(path, kind="summary") if path.is_file() else None
+    except OSError as e:
+        if notes is not None:
+            notes.append(str(e))
         return None
     return found if isinstance(found, dict) else None
 
@@ -205,10 +213,22 @@ def _exported_runs(path: Path, seeds: int | None, generations) -> list[RunCurve]
 
 
 def load_job(path: Path, notes: list[str]) -> Job | None:
-    """Read one job dir (finished or not, or exported); None, with a note, if it has no readable run."""
-    summary = _read_json(path / "summary.json")
+    """Read one job dir (finished or not, or exported); None, with a note, if it has no readable run or one of its
+    files is refused (:mod:`rovermarl.record.schemas`)."""
+    bad: list[str] = []
+    job = _load_job(path, notes, bad)
+    if bad:
+        notes.append(f"{bad[0]}; job skipped")
+        return None
+    return job
+
+
+def _load_job(path: Path, notes: list[str], bad: list[str]) -> Job | None:
+    summary = _read_json(path / "summary.json", bad)
     if (path / "curves.npz").is_file():
-        config = _read_yaml(path / "config.yaml") or {}
+        config = _read_yaml(path / "config.yaml", "config", bad) or {}
+        if bad:
+            return None
         config = config if isinstance(config, dict) else {}
         seeds = len((summary or {}).get("seeds") or []) or None
         try:
@@ -220,10 +240,14 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
     hydra_dir = path / ".hydra"
     choices = dict((summary or {}).get("choices") or {})
     if not choices:
-        runtime = ((_read_yaml(hydra_dir / "hydra.yaml") or {}).get("hydra") or {}).get("runtime") or {}
+        runtime = ((_read_yaml(hydra_dir / "hydra.yaml", "hydra", bad) or {}).get("hydra") or {}).get("runtime") or {}
         choices = {g: o for g, o in (runtime.get("choices") or {}).items() if "/" not in g and o is not None}
-    overrides = [str(o).replace("'", "").replace('"', "") for o in _read_yaml(hydra_dir / "overrides.yaml") or []]
-    config = _read_yaml(hydra_dir / "config.yaml") or _read_yaml(path / "config.yaml") or {}  # CLI, or library use
+    overrides = [str(o).replace("'", "").replace('"', "")
+                 for o in _read_yaml(hydra_dir / "overrides.yaml", "overrides", bad) or []]
+    config = (_read_yaml(hydra_dir / "config.yaml", "config", bad) if (hydra_dir / "config.yaml").is_file() else
+              _read_yaml(path / "config.yaml", "config", bad)) or {}                      # CLI, or library use
+    if bad:
+        return None
     config = config if isinstance(config, dict) else {}
     size = RunSize.of(config)
     runs = []
@@ -277,7 +301,8 @@ def find_jobs(path: Path, only: Sequence[Path] | None = None) -> tuple[list[Job]
     notes: list[str] = []
     jobs = [job for d in sorted(dirs) if (job := load_job(d, notes)) is not None]
     if not jobs:
-        raise SweepError(f"no readable run under {path} ({len(dirs)} job dirs, none with a runs/seed_*/curve.npz)")
+        raise SweepError(f"no readable run under {path}: {notes[0]}" if notes else
+                         f"no readable run under {path} ({len(dirs)} job dirs, none with a runs/seed_*/curve.npz)")
     return sorted(jobs, key=Job.sort_key), notes
 
 

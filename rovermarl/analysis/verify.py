@@ -18,6 +18,7 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from rovermarl.analysis.results import ResultsError
+from rovermarl.analysis.sweep import RUN_DIR
 from rovermarl.record.safe_read import Spec, check_tree, load_npy, load_npz, read_json, read_yaml
 from rovermarl.runner.chunk import build, heldout_score, to_plain, upgrade
 from rovermarl.runner.trust import check_targets
@@ -32,12 +33,13 @@ class Checked:
     job: str
     ok: bool
     line: str
+    refused: bool = False              # its files or config were refused: not re-scored
 
 
 def _config(job: Path, trust: bool = False) -> dict:
     for path in (job / "config.yaml", job / ".hydra" / "config.yaml"):
         if path.is_file():
-            cfg = upgrade(OmegaConf.create(read_yaml(path)))
+            cfg = upgrade(OmegaConf.create(read_yaml(path, kind="config")))
             if not trust:
                 check_targets(cfg, str(path))
             return to_plain(cfg)
@@ -55,7 +57,7 @@ def _teams(job: Path, world) -> dict[int, np.ndarray]:
             raise ResultsError(f"{job / 'genomes.npz'}: {len(a['seed'])} seeds, {len(a['genomes'])} teams")
         return {int(s): np.asarray(g, dtype=np.float64) for s, g in zip(a["seed"], a["genomes"], strict=True)}
     return {int(path.parent.name.removeprefix("seed_")): np.asarray(load_npy(path, Spec((n, p), "f")), np.float64)
-            for path in sorted((job / "runs").glob("seed_*/genomes.npy"))}
+            for path in sorted((job / "runs").glob("seed_*/genomes.npy")) if RUN_DIR.fullmatch(path.parent.name)}
 
 
 def _recorded(job: Path, seed: int, summary: dict) -> tuple[float | None, float | None]:
@@ -64,7 +66,7 @@ def _recorded(job: Path, seed: int, summary: dict) -> tuple[float | None, float 
     final, held = (summary.get(key, {}).get(str(seed)) for key in ("final_score", "heldout_score"))
     run_json = job / "runs" / f"seed_{seed:03d}" / "run.json"
     if run_json.is_file():
-        run = read_json(run_json)
+        run = read_json(run_json, kind="run")
         for key, value in (("final_score", final), ("heldout_score", held)):
             if value is not None and run.get(key) != value:
                 raise ResultsError(f"{run_json}: {key} {run.get(key)} against {value} in summary.json")
@@ -77,7 +79,7 @@ def verify_job(job: Path, trust: bool = False) -> Checked:
     cfg = _config(job, trust)
     parts = build(cfg)
     world = parts.world
-    summary = read_json(job / "summary.json")
+    summary = read_json(job / "summary.json", kind="summary")
     teams = _teams(job, world)
     if not teams:
         return Checked(job.name, False, "no final teams")
@@ -110,7 +112,17 @@ def verify(path: Path, trust: bool = False) -> list[Checked]:
         raise ResultsError(f"{path}: not a directory")
     check_tree(path)                     # no link, FIFO or device anywhere under it: nothing is followed
     jobs = [path] if (path / "summary.json").is_file() else sorted(p.parent for p in path.glob("*/summary.json"))
-    jobs = [j for j in jobs if (j / "genomes.npz").is_file() or any((j / "runs").glob("seed_*/genomes.npy"))]
+    jobs = [j for j in jobs if (j / "genomes.npz").is_file() or any(
+        RUN_DIR.fullmatch(g.parent.name) for g in (j / "runs").glob("seed_*/genomes.npy"))]   # seed_XXX.<hash>: aside
     if not jobs:
         raise ResultsError(f"{path}: no job with final teams (genomes.npz or runs/seed_*/genomes.npy)")
-    return [verify_job(j, trust) for j in jobs]
+    return [_verified(j, trust) for j in jobs]
+
+
+def _verified(job: Path, trust: bool) -> Checked:
+    """:func:`verify_job`, or a job refused with the one line of what its files or config lack: the other jobs are
+    still verified."""
+    try:
+        return verify_job(job, trust)
+    except (ResultsError, ValueError, OSError) as e:      # a file refused (safe_read), a config refused (ConfigError)
+        return Checked(job.name, False, str(e), refused=True)

@@ -19,7 +19,6 @@ Each failure is :class:`Unsafe` (a path refused) or :class:`Corrupt` (a file tha
 from __future__ import annotations
 
 import io
-import json
 import math
 import os
 import re
@@ -30,7 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-TEXT_CAP = 64 << 20                           # bytes: the largest json/yaml/log a results dir has any reason to hold
+from rovermarl.record import schemas
+
+TEXT_CAP = 64 << 20                           # bytes: the largest json/log a results dir has any reason to hold
+YAML_CAP = 1 << 20                            # bytes: the largest yaml (a job's config is a few KB)
+LINE_CAP = 1 << 20                            # bytes: one line of a JSON-lines log
 HEADER_CAP = 1 << 16                          # bytes: an .npy header (numpy writes 128 or so)
 ANY = "*"                                     # in a dict of specs: any other member name
 FREE = 1 << 28                                # elements along an axis that no config bounds
@@ -128,24 +131,45 @@ def read_text(path: Path, cap: int = TEXT_CAP) -> str:
     return read_bytes(path, cap).decode("utf-8", errors="replace")
 
 
-def read_json(path: Path, cap: int = TEXT_CAP):
-    """The JSON of ``path``; :class:`Corrupt` if it is not JSON."""
-    try:
-        return json.loads(read_bytes(path, cap))
-    except ValueError as e:
-        raise Corrupt(f"{path} is not JSON ({type(e).__name__})") from None
+def read_json(path: Path, cap: int = TEXT_CAP, kind: str | None = None):
+    """The JSON of ``path``: :class:`Corrupt` if it is not JSON, is nested too deep, holds a number that is not
+    finite or an integer past 64 bits, or (``kind``, a key of :data:`rovermarl.record.schemas.KINDS`) breaks that
+    kind's schema (:mod:`rovermarl.record.schemas`); the message names the file and the field."""
+    return _parsed(schemas.parse_json, read_bytes(path, cap), path, kind)
 
 
-def read_yaml(path: Path, cap: int = TEXT_CAP):
-    """The plain containers of the YAML of ``path`` (interpolations unresolved); :class:`Corrupt` for anything
-    OmegaConf's safe loader refuses (``!!python/...`` tags included) or that is not a config."""
-    from omegaconf import OmegaConf
-    text = read_text(path, cap)
+def read_jsonl(path: Path, kind: str | None = None, cap: int = LINE_CAP, chunk: int = 1 << 20):
+    """Each line of an append-only JSON-lines log (``invocations.jsonl``), read ``chunk`` bytes at a time (the log
+    may be of any size; one line at most ``cap`` bytes), each checked as :func:`read_json` checks a file; blank
+    lines skipped."""
+    with open_regular(path) as f:
+        rest, number = b"", 0
+        while True:
+            block = f.read(chunk)
+            lines = (rest + block).split(b"\n")
+            rest = lines.pop() if block else b""
+            if len(rest) > cap:
+                raise Corrupt(f"{path}: line {number + len(lines) + 1} is longer than {cap} bytes")
+            for line in lines:
+                number += 1
+                if line.strip():
+                    yield _parsed(schemas.parse_json, line, f"{path}: line {number}", kind)
+            if not block:
+                return
+
+
+def read_yaml(path: Path, cap: int = YAML_CAP, kind: str | None = None):
+    """The plain containers of the YAML of ``path`` (interpolations unresolved); :class:`Corrupt` for an alias,
+    anchor or tag (refused before anything is built: an alias bomb never expands), nesting too deep, anything
+    OmegaConf's loader refuses, numbers as :func:`read_json` refuses them, or a breach of ``kind``'s schema."""
+    return _parsed(schemas.parse_yaml, read_text(path, cap), path, kind)
+
+
+def _parsed(parse, data, where, kind):
     try:
-        return OmegaConf.to_container(OmegaConf.create(text) if text.strip() else OmegaConf.create(), resolve=False)
-    except Exception as e:  # noqa: BLE001 - yaml errors, constructor errors, odd nodes: one line
-        first = (str(e).strip().splitlines() or [""])[0][:100]
-        raise Corrupt(f"{path} is not a readable config ({type(e).__name__}: {first})") from None
+        return parse(data, where, kind)
+    except schemas.Invalid as e:
+        raise Corrupt(str(e)) from None
 
 
 # ---- arrays ------------------------------------------------------------------------------------------------------

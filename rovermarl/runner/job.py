@@ -70,7 +70,7 @@ def all_finished(cfg: DictConfig, job_dir: Path) -> bool:
         if cfg.resume == "strict" and not same_code(meta.get("provenance")):
             return False
     try:
-        summary = read_json(job_dir / "summary.json")
+        summary = read_json(job_dir / "summary.json", kind="summary")
     except OSError:
         return False
     return isinstance(summary, dict) and _current(summary, seeds, cfg.levels)
@@ -221,7 +221,7 @@ def _template(cfg, seed: int) -> dict:
 def _read_summary(path: Path, name: str) -> dict:
     """The job's summary.json, or {} (rebuilt from the runs) if it cannot be read."""
     try:
-        summary = read_json(path)
+        summary = read_json(path, kind="summary")
     except OSError as e:
         log.warning("%s: %s is unreadable (%s); rebuilding it from the runs", name, path, type(e).__name__)
         return {}
