@@ -50,7 +50,7 @@ from rovermarl.runner.validate import validate  # noqa: E402
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
 PROG = "rovermarl.train"
 BUSY = 75                                                              # EX_TEMPFAIL: another launch holds the dir
-STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM)   # one line
+STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM, errno.ENOENT)  # 1 line
 
 
 def task(cfg: DictConfig) -> float:

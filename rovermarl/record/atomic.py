@@ -77,7 +77,7 @@ def open_dir(path: Path, create: bool = False, own_root: bool = False) -> int:
                 child = os.open(part, _DIR, dir_fd=fd)
         except OSError as e:
             if e.errno in (errno.ELOOP, errno.ENOTDIR):
-                raise _odd(fd, part, where) from None
+                raise _odd(fd, part, where, root.path) from None
             raise OSError(e.errno, e.strerror, str(where)) from None
         finally:
             os.close(fd)
@@ -101,14 +101,15 @@ def _split(path: Path, own_root: bool = False) -> tuple[_Root | None, list[str]]
     return root, rel.split(os.sep)
 
 
-def _odd(dir_fd: int, name: str, where: Path) -> Unsafe:
-    """The one-line refusal of ``name`` in ``dir_fd``, a link or not a directory."""
+def _odd(dir_fd: int, name: str, where: Path, root: str) -> Unsafe:
+    """The one-line refusal of ``name`` in ``dir_fd``: a link or not a directory (either, if it changed since)."""
     try:
-        link = stat.S_ISLNK(os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_mode)
+        mode = os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_mode
     except OSError:
-        link = False
-    return Unsafe(f"{where} is {'a symbolic link' if link else 'not a directory'}: nothing is written through it "
-                  f"(a write never leaves {where.parent}); remove it")
+        mode = stat.S_IFDIR
+    what = ("a symbolic link" if stat.S_ISLNK(mode) else "a symbolic link or not a directory (it changed as it "
+            "was opened)" if stat.S_ISDIR(mode) else "not a directory")
+    return Unsafe(f"{where} is {what}: nothing is written through it (writes stay in {root}); remove it")
 
 
 @contextlib.contextmanager
