@@ -321,3 +321,32 @@ def test_run_json_written_beneath_the_job_dir_names_its_file_on_a_write_error(cf
     assert err.value.filename == str(tmp_path / "job" / "summary.json")
     assert not [p for p in (tmp_path / "job").rglob(".*.tmp")]
     assert json.loads((tmp_path / "job" / "runs" / "seed_000" / "run.json").read_text())["seed"] == 0
+
+
+def test_a_job_dir_swapped_for_a_link_during_heldout_merge_takes_no_file_outside(sweep, tmp_path, capsys):
+    """issue 51: swapping a job dir during ``analysis heldout merge`` wrote outside 2 of 10 times."""
+    from rovermarl.analysis.__main__ import main
+
+    committed = json.loads((sweep / JOB / "summary.json").read_text())
+    for key in ("heldout_score", "median_heldout_score"):
+        committed.pop(key)
+    victim = tmp_path / "outside"
+    victim.mkdir()
+    (victim / "summary.json").write_text(json.dumps(committed))
+    before, refused = _snapshot(victim), 0
+    for i in range(ROUNDS // 2):
+        results = tmp_path / f"results{i}"
+        (results / JOB).mkdir(parents=True)
+        (results / JOB / "summary.json").write_text(json.dumps(committed))
+        swapper = Swapper(results / JOB, victim, results)
+        swapper.start()
+        try:
+            main(["heldout", "merge", str(sweep), str(results)])
+        except SystemExit as e:
+            assert e.code == 2
+            refused += 1
+        finally:
+            swapper.end()
+        assert _snapshot(victim) == before, f"round {i}"
+    err = [x for x in capsys.readouterr().err.splitlines() if "error" in x]
+    assert refused and len(err) == refused and all("symbolic link" in x or "No such file" in x for x in err), err

@@ -33,6 +33,7 @@ from pathlib import Path
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
 from rovermarl.errors import ConfigError
+from rovermarl.record.atomic import beneath
 
 PROG = "rovermarl.analysis"
 
@@ -110,7 +111,8 @@ def main(argv=None) -> None:
             _baselines(args.action, args.paths)
         elif args.command == "heldout":
             from rovermarl.analysis.heldout import merge
-            merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
+            with beneath(args.results, create=False):                  # a job dir swapped for a link: refused
+                merge(args.sweep, args.results, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr))
         elif args.command == "radius":
             from rovermarl.analysis.radius import report as radius_report
             print(radius_report(args.results), end="")
