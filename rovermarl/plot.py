@@ -11,6 +11,7 @@ status 2 and one line on stderr. Files are written beneath PATH (or ``--out``) o
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import sys
@@ -86,7 +87,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             return
         from rovermarl.analysis.figures import plot_sweep
         own = args.out is None and out == args.path / "figures"           # PATH/figures: written beneath PATH
-        with beneath(args.path if own else out, create=not own):
+        with (beneath(args.path if own else out, create=not own) if args.path.is_dir()
+              else contextlib.nullcontext()):                         # no PATH: plot_sweep says so, writes nothing
             index = plot_sweep(args.path, out, log=log, **kwargs)
     except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
         print(f"{PROG}: error: {e}", file=sys.stderr)
