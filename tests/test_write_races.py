@@ -350,3 +350,26 @@ def test_a_job_dir_swapped_for_a_link_during_heldout_merge_takes_no_file_outside
         assert _snapshot(victim) == before, f"round {i}"
     err = [x for x in capsys.readouterr().err.splitlines() if "error" in x]
     assert refused and len(err) == refused and all("symbolic link" in x or "No such file" in x for x in err), err
+
+
+def test_a_run_dir_swapped_for_a_link_during_replay_resim_takes_no_file_outside(sweep, tmp_path):
+    """``replay --resim`` writes its .rrd beneath the job dir: the run dir toggled for a link to a copy elsewhere."""
+    from rovermarl.replay import ReplayError, resimulate
+
+    victim = tmp_path / "outside"
+    shutil.copytree(sweep / JOB / "runs" / "seed_000", victim)         # reads through the link still succeed
+    before, refused = _snapshot(victim), 0
+    for i in range(ROUNDS // 3):
+        job = tmp_path / f"job{i}"
+        shutil.copytree(sweep / JOB, job)
+        swapper = Swapper(job / "runs" / "seed_000", victim, job)
+        swapper.start()
+        try:
+            resimulate(job / "runs" / "seed_000", None, None)
+        except (OSError, ReplayError) as e:               # the link refused, or the run dir gone for a moment
+            assert "symbolic link" in _one_line(e) or "No such file" in str(e) or "needs genomes.npy" in str(e)
+            refused += 1
+        finally:
+            swapper.end()
+        assert _snapshot(victim) == before, f"round {i}"
+    assert refused
