@@ -47,22 +47,27 @@ def hold(directory: Path):
         yield directory
         return
     created = [d for d in (key, *key.parents) if not d.exists()]           # deepest first
-    with beneath(directory) as dfd:
-        stamped = None
-        try:
-            stamped = _stamp(directory, _acquire(dfd, directory))
-            _HELD.add(key)
-            yield directory
-        finally:
-            _HELD.discard(key)
-            if stamped is not None:
+    for _ in range(TRIES):
+        with beneath(directory) as dfd:
+            try:
+                fd = _acquire(dfd, directory)
+            except FileNotFoundError:     # the dir was removed meanwhile (by a launch that wrote nothing): again
+                continue
+            stamped = _stamp(directory, fd)
+            try:
+                _HELD.add(key)
+                yield directory
+            finally:
+                _HELD.discard(key)
+                if created and os.listdir(dfd) in ([], [NAME]):            # nothing was written: leave nothing,
+                    with contextlib.suppress(OSError):                     # removed while still held
+                        os.unlink(NAME, dir_fd=dfd)
+                    with contextlib.suppress(OSError):
+                        for d in created:
+                            d.rmdir()
                 os.close(stamped)                                          # closing releases the lock
-            if created and os.listdir(dfd) in ([], [NAME]):                # nothing was written: leave nothing
-                with contextlib.suppress(OSError):
-                    os.unlink(NAME, dir_fd=dfd)
-                with contextlib.suppress(OSError):
-                    for d in created:
-                        d.rmdir()
+            return
+    raise Locked(f"{directory} kept disappearing ({TRIES} tries); another launch is using it")
 
 
 def _stamp(directory: Path, fd: int) -> int:
