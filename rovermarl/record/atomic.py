@@ -12,7 +12,9 @@
 - :func:`refuse_shared`: a file that others write in place (Hydra's ``.hydra/*.yaml``, ``multirun.yaml``, its
   ``train.log``) that is a link or has other hard links is refused before a launch.
 
-Outside any ``beneath`` block a file's own dir is the root (library use: only the file's last part is protected).
+A write under no ``beneath`` block has its file's own dir as root (library use: only the file's last part is
+protected); a write outside the active root is refused. The root is per thread and task (a ``contextvars`` value).
+(Python has no ``openat2``; ``RESOLVE_BENEATH`` is what the part-by-part walk does by hand.)
 """
 
 from __future__ import annotations
