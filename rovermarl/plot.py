@@ -3,12 +3,15 @@
 
 Draws the paper's figures from a finished (or partly finished) sweep, one job dir, or exported results
 (``results/paper``) into ``PATH/figures/`` (see :mod:`rovermarl.analysis.figures`). Bad input exits with
-status 2 and one line on stderr. :class:`PlotCallback` does the same when a Hydra multirun ends, and never fails it.
+status 2 and one line on stderr. Files are written beneath PATH (or ``--out``) only
+(:func:`rovermarl.record.atomic.beneath`: a ``figures/`` swapped for a link fails in one line).
+:class:`PlotCallback` does the same when a Hydra multirun ends, and never fails it.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
 import math
 import sys
@@ -21,6 +24,7 @@ from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
 from rovermarl.errors import Printable, printable
+from rovermarl.record.atomic import beneath
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
@@ -86,7 +90,10 @@ def main(argv: Sequence[str] | None = None) -> None:
             print(f"{PROG}: {len(index['figures'])} figures in {out}, up to date (their inputs did not change)")
             return
         from rovermarl.analysis.figures import plot_sweep
-        index = plot_sweep(args.path, out, log=log, **kwargs)
+        own = args.out is None and out == args.path / "figures"           # PATH/figures: written beneath PATH
+        with (beneath(args.path if own else out, create=not own) if args.path.is_dir()
+              else contextlib.nullcontext()):                         # no PATH: plot_sweep says so, writes nothing
+            index = plot_sweep(args.path, out, log=log, **kwargs)
     except (SweepError, ResultsError, OSError) as e:        # OSError: a link, FIFO or corrupt file refused
         print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
@@ -129,7 +136,8 @@ class PlotCallback(Callback):
                 log.info("figures in %s are up to date", sweep / "figures")
                 return
             from rovermarl.analysis.figures import plot_sweep
-            index = plot_sweep(sweep, only=own_jobs(config, sweep), **kwargs)   # this launch's jobs: trusted
+            with beneath(sweep, create=False):
+                index = plot_sweep(sweep, only=own_jobs(config, sweep), **kwargs)   # this launch's jobs: trusted
             log.info("%d figures in %s", len(index["figures"]), sweep / "figures")
         except Exception as e:  # figures are a by-product; never fail a finished sweep
             log.warning("no figures for sweep %s: %s: %s", printable(sweep), type(e).__name__, printable(e, 2000))

@@ -64,6 +64,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     """Record the final team of ``run`` on its initial conditions (or fresh ones from ``ic_seed``) to an .rrd. A world
     plug-in's run needs ``trust`` (``--trust-config``: its module runs code)."""
     from rovermarl.env import World
+    from rovermarl.record.atomic import beneath
     from rovermarl.record.events import occupancy
     from rovermarl.record.rerun_log import write_rrd
     from rovermarl.record.safe_read import RunSize, check_tree, load_npy, load_npz, read_yaml
@@ -97,8 +98,9 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     if len(ic) > 2 and np.shape(ic[2])[-1]:
         result["ic_layout"] = np.asarray(ic[2])                         # a plug-in's layouts: POIs that move, drawn
     tag = "own" if ic_seed is None else str(ic_seed)
-    out = out or run / f"resim_ic-{tag}.rrd"
-    write_rrd(out, result, world, recording_id=f"{run.name}-resim-{tag}")
+    root, out = (job, run / f"resim_ic-{tag}.rrd") if out is None else (Path(out).parent, Path(out))
+    with beneath(root, create=root != job):                           # a run dir swapped for a link: refused
+        write_rrd(out, result, world, recording_id=f"{run.name}-resim-{tag}")
     print(f"re-simulated {run} on initial conditions {tag}: score {score:.4g} -> {out}")
     return out
 

@@ -40,7 +40,8 @@ from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_opti
 from rovermarl.errors import ConfigError, plugin_homes, plugin_line  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
-from rovermarl.record.safe_read import Unsafe, check_tree  # noqa: E402
+from rovermarl.record.atomic import check_output_dir  # noqa: E402
+from rovermarl.record.safe_read import Unsafe  # noqa: E402
 from rovermarl.resources import CONF_DIR  # noqa: E402
 from rovermarl.runner.compile import announce_and_warm  # noqa: E402
 from rovermarl.runner.job import all_finished, run_job  # noqa: E402
@@ -49,7 +50,7 @@ from rovermarl.runner.validate import validate  # noqa: E402
 OmegaConf.register_new_resolver("rovermarl_dirname", dirname, replace=True)
 PROG = "rovermarl.train"
 BUSY = 75                                                              # EX_TEMPFAIL: another launch holds the dir
-STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM)   # one line
+STORAGE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM, errno.ENOENT)  # 1 line
 
 
 def task(cfg: DictConfig) -> float:
@@ -112,7 +113,7 @@ def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser,
     given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key + "=")]
     out = given[-1] if given else f"outputs/{'multirun' if args.multirun else 'run'}/{sweepname(args.overrides)}"
     writable(key, Path(out))
-    check_tree(Path(out), "output dir")              # a copied results dir: no link followed out of it, no FIFO
+    check_output_dir(Path(out))             # a copied results dir: no link followed out of it, no FIFO, no hard link
     if not given:
         args.overrides = [*args.overrides, f"{key}='{out}'"]
     args.out_dir = Path(out)
@@ -268,11 +269,9 @@ def _adopt_orphans() -> None:
 
 
 def _sweep_lock(args):
-    """The launch holds its output dir's lock (the sweep dir of a multirun, each job then its own job dir's too, in
-    :func:`run_job`; the run dir of a single run)."""
-    key = "hydra.sweep.dir=" if args.multirun else "hydra.run.dir="
-    given = [a.partition("=")[2].strip("'\"") for a in args.overrides if a.startswith(key)]
-    return lock.hold(Path(given[-1])) if given else contextlib.nullcontext()
+    """The launch holds its output dir's lock and writes only beneath it (the sweep dir of a multirun, each job then
+    its own job dir's too, in :func:`run_job`; the run dir of a single run)."""
+    return lock.hold(args.out_dir) if getattr(args, "out_dir", None) else contextlib.nullcontext()
 
 
 class Terminated(KeyboardInterrupt):

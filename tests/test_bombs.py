@@ -280,6 +280,23 @@ def test_an_invocations_log_over_64_mb_is_read_in_chunks(sweep2, tmp_path):
     assert proc.returncode == 2 and _named_once(proc, f"invocations.jsonl: line {n + 1}", "NaN")
 
 
+def test_a_relaunch_appends_to_an_invocations_log_over_64_mb(sweep2, tmp_path):
+    """The relaunch copies the log in chunks into a new file, its own line last: no traceback, nothing lost."""
+    sw = tmp_path / "sweep"
+    shutil.copytree(sweep2, sw)
+    line = json.dumps({"wall_time_s": 1.0, "team_evals": 2, "pad": "x" * 4000}) + "\n"
+    n = (65 << 20) // len(line) + 1
+    with open(sw / BOMBED / "invocations.jsonl", "w") as f:
+        f.writelines([line] * n)
+    for run in (sw / BOMBED / "runs").iterdir():
+        (run / "run.json").unlink()                                      # the relaunch has work to do
+    proc = run_cli(*SWEEP2, f"hydra.sweep.dir={sw}", timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-3000:]
+    with open(sw / BOMBED / "invocations.jsonl") as f:
+        lines = f.readlines()
+    assert len(lines) == n + 1 and lines[0] == line and json.loads(lines[-1])["team_evals"] > 2
+
+
 @pytest.mark.parametrize("command", [("selectors",), ("claims",), ("plot",)])
 def test_a_bomb_in_committed_results_is_one_line(tmp_path, command):
     results = tmp_path / "paper"

@@ -13,7 +13,8 @@ import sys
 import numpy as np
 import pytest
 
-from rovermarl.record.outputs import FAULT, verify
+from rovermarl.record.atomic import FAULT
+from rovermarl.record.outputs import verify
 from rovermarl.runner.job import run_job
 from tests.conftest import ROOT, make_cfg, run_cli
 
@@ -104,7 +105,7 @@ def test_the_warm_ups_faults_off_leaves_other_threads_and_the_environment_alone(
     """The compile warm-up runs in a thread while Ray starts: Ray's processes must still get ROVERMARL_FAULT."""
     import threading
 
-    from rovermarl.record.outputs import fault, faults_off
+    from rovermarl.record.atomic import fault, faults_off
     monkeypatch.setenv(FAULT, "run.json:eio")
     seen = []
     with faults_off():

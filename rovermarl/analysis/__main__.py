@@ -35,6 +35,7 @@ from pathlib import Path
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
 from rovermarl.errors import ConfigError, printable
+from rovermarl.record.atomic import beneath
 
 PROG = "rovermarl.analysis"
 
@@ -162,7 +163,8 @@ def _heldout(action: str, paths: list[Path]) -> None:
         print(f"{PROG}: error: heldout {action} takes {2 if action == 'merge' else 1} path(s)", file=sys.stderr)
         sys.exit(2)
     if action == "merge":
-        heldout.merge(paths[0], paths[1], log=_say)
+        with beneath(paths[1], create=False):                           # a job dir swapped for a link: refused
+            heldout.merge(paths[0], paths[1], log=_say)
     elif not heldout.done(paths[0]):
         sys.exit(1)
 

@@ -125,15 +125,33 @@ def _held_stderr():
             os.close(saved)
 
 
-def _probe(address: str, timeout: float = 5.0) -> None:
-    """Fail fast on a HOST:PORT nobody listens on (Ray itself retries for minutes)."""
+PROBE_S = 5.0                        # seconds: a HOST:PORT that does not answer as Ray (gRPC) within this is refused
+_HTTP2 = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n" + bytes(3) + b"\x04" + bytes(5)   # client preface + empty SETTINGS
+
+
+def _probe(address: str, timeout: float = PROBE_S) -> None:
+    """Fail fast on a HOST:PORT that is not a Ray server (Ray itself waits for minutes, deaf to SIGTERM): Ray's GCS and
+    its client server speak gRPC, so a connection that gets no HTTP/2 SETTINGS frame back within ``timeout`` seconds
+    (refused, closed or silent) is refused. A signal during the wait ends it (the caller's handlers run)."""
     host, sep, port = address.removeprefix("ray://").rpartition(":")
     if not sep or not port.isdigit():
         return  # "auto" and other forms: let Ray resolve them
     try:
-        socket.create_connection((host, int(port)), timeout=timeout).close()
+        with socket.create_connection((host, int(port)), timeout=timeout) as conn:
+            conn.sendall(_HTTP2)
+            head, deadline = b"", time.monotonic() + timeout
+            while len(head) < 9:
+                conn.settimeout(max(deadline - time.monotonic(), 0.001))
+                chunk = conn.recv(9 - len(head))
+                if not chunk:
+                    raise ConnectionError("the connection was closed")
+                head += chunk
+    except TimeoutError:
+        raise ConnectionError(f"nothing answers as Ray at {host}:{port} (no reply in {timeout:g} s)") from None
     except OSError as e:
-        raise ConnectionError(f"nothing answers at {host}:{port} ({e.strerror or e})") from None
+        raise ConnectionError(f"nothing answers as Ray at {host}:{port} ({e.strerror or e})") from None
+    if head[3] != 0x04:                                            # an HTTP/2 frame header: type at byte 3
+        raise ConnectionError(f"nothing answers as Ray at {host}:{port} (not a gRPC server)")
 
 
 def run_ray(cfg, job: dict, records, on_chunk, advance) -> None:

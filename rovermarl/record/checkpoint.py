@@ -9,18 +9,15 @@ by an ``.npz`` payload; a truncated or corrupt file fails the checksum and is re
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import io
 import json
 import math
-import os
-import secrets
 from pathlib import Path
 
 import numpy as np
 
-from rovermarl.record.outputs import atomic_open, fault
+from rovermarl.record import atomic
 from rovermarl.record.safe_read import ANY, FREE, Spec, load_npz_bytes, read_bytes
 
 MAGIC = b"RMCKPT2"
@@ -90,20 +87,8 @@ class RunRecord:
         buf = io.BytesIO()
         np.savez(buf, _meta=np.array(json.dumps(meta)), **arrays)
         payload = buf.getvalue()
-        path = Path(path)
-        new = path.with_name(f".{path.stem}.{os.getpid()}.{secrets.token_hex(4)}.bin")   # this writer's own name
-        try:
-            with atomic_open(new) as f:                                  # complete before touching the old ones
-                f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
-            fault(path)                                                  # the fault-injection suite's hook
-            if path.exists():
-                os.replace(path, previous(path))
-            os.replace(new, path)
-        except OSError as e:                                             # name the checkpoint, not its temp copy
-            raise OSError(e.errno, e.strerror, str(path)) from None
-        finally:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(new)
+        with atomic.atomic_open(path, aside=previous(path)) as f:           # complete before touching the old ones
+            f.write(MAGIC + b" " + hashlib.sha256(payload).hexdigest().encode() + b"\n" + payload)
 
     @classmethod
     def load(cls, path: Path, config_hash: str, generations: int | None = None, series=None,
@@ -279,8 +264,7 @@ def resume(path: Path, config_hash: str, warn, generations: int | None = None, s
 
 def remove(path: Path) -> None:
     for p in (Path(path), previous(path)):
-        with contextlib.suppress(FileNotFoundError):
-            p.unlink()
+        atomic.remove(p)
 
 
 def _encode(obj, arrays: dict, prefix: str = "state"):

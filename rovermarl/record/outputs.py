@@ -1,4 +1,4 @@
-"""Result files of a job, written atomically (temp file in the same directory, then rename).
+"""Result files of a job, written atomically beneath the job dir (:mod:`rovermarl.record.atomic`).
 
 Job dir layout::
 
@@ -18,77 +18,20 @@ Job dir layout::
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
-import errno
 import hashlib
 import json
 import logging
-import os
-import secrets
-import signal
+import shutil
 from pathlib import Path
 
 import numpy as np
 
+from rovermarl.record.atomic import atomic_open, remove
 from rovermarl.record.events import FILES as EVENT_FILES
 from rovermarl.record.provenance import provenance
-from rovermarl.record.safe_read import RunSize, load_npz, open_regular, read_json, read_text
+from rovermarl.record.safe_read import RunSize, load_npz, open_regular, read_json
 
 log = logging.getLogger("rovermarl")
-
-
-@contextlib.contextmanager
-def atomic_open(path: Path, mode: str = "wb"):
-    """Open a temp file next to ``path``; rename it onto ``path`` only if the block succeeds."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.parent / f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)   # the umask applies, as to any file
-    try:
-        with os.fdopen(fd, mode) as f:
-            yield f
-            f.flush()
-            fault(path)
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException as e:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        if isinstance(e, OSError) and e.filename is None:             # a failed write: name the file it was for
-            raise OSError(e.errno, e.strerror, str(path)) from None
-        raise
-
-
-FAULT = "ROVERMARL_FAULT"       # the fault-injection suite's hook (tests/test_faults.py): "<file name>:<action>"
-_NO_FAULTS = contextvars.ContextVar("rovermarl_no_faults", default=False)
-
-
-@contextlib.contextmanager
-def faults_off():
-    """No injected fault in this thread (the compile warm-up's job), whatever ``ROVERMARL_FAULT`` says; the environment
-    is left alone, so processes started meanwhile (Ray's) still get it."""
-    token = _NO_FAULTS.set(True)
-    try:
-        yield
-    finally:
-        _NO_FAULTS.reset(token)
-
-
-def fault(path: Path) -> None:
-    """The fault-injection hook, at each write of a run: with ``ROVERMARL_FAULT=<file name>:<action>`` set, writing
-    that file (its temp copy is complete, not yet renamed) ends the process (``kill``: SIGKILL) or fails as the
-    disk would (``enospc``, ``eio``: OSError). Unset (always, outside the tests), it does nothing."""
-    spec = os.environ.get(FAULT)
-    if not spec or _NO_FAULTS.get():
-        return
-    name, _, action = spec.rpartition(":")
-    if name != Path(path).name:
-        return
-    if action == "kill":
-        os.kill(os.getpid(), signal.SIGKILL)
-    code = {"enospc": errno.ENOSPC, "eio": errno.EIO}[action]
-    raise OSError(code, os.strerror(code), str(path))
 
 
 def remove_temp_files(job_dir: Path) -> None:
@@ -97,8 +40,7 @@ def remove_temp_files(job_dir: Path) -> None:
     job_dir = Path(job_dir)
     for pattern in (".*.tmp", "runs/seed_*/.*.tmp", "runs/seed_*/.checkpoint.*.bin"):
         for path in job_dir.glob(pattern):
-            with contextlib.suppress(FileNotFoundError):
-                path.unlink()
+            remove(path)
 
 
 def run_dir(job_dir: Path, seed: int) -> Path:
@@ -109,8 +51,7 @@ def save_run(job_dir: Path, result: dict, series=(), config_hash: str = "", writ
     """Write one finished run's files, ``run.json`` last: ``curve.npz`` holds ``score`` and the declared ``series``
     (:class:`~rovermarl.algorithms.base.Series`); ``write_rrd(path, result)`` adds the recording."""
     out = run_dir(job_dir, result["seed"])
-    with contextlib.suppress(FileNotFoundError):
-        (out / "run.json").unlink()                                   # not finished until every file is rewritten
+    remove(out / "run.json")                                          # not finished until every file is rewritten
     _savez(out / "curve.npz", {"score": result["score"], **{s.name: result[s.name] for s in series}})
     with atomic_open(out / "genomes.npy") as f:
         np.save(f, result["genomes"])
@@ -256,10 +197,12 @@ def close_launch(job_dir: Path, record: dict | None = None) -> None:
         except (OSError, ValueError, TypeError, KeyError) as e:
             log.warning("%s is unreadable (%s): the compute of the launch that left it is not counted",
                         progress, type(e).__name__)
-            progress.unlink(missing_ok=True)
+            remove(progress)
             return
     log_path = job_dir / INVOCATIONS
-    before = read_text(log_path) if log_path.is_file() else ""
-    with atomic_open(log_path, "w") as f:                              # rewritten whole: never a partial line
-        f.write(before + json.dumps(record) + "\n")
-    progress.unlink(missing_ok=True)
+    with atomic_open(log_path) as f:                                   # rewritten whole: never a partial line
+        if log_path.is_file():
+            with open_regular(log_path) as old:                        # copied in chunks, however long
+                shutil.copyfileobj(old, f, 1 << 20)
+        f.write((json.dumps(record) + "\n").encode())
+    remove(progress)

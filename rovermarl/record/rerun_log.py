@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from rovermarl import palette
-from rovermarl.record.outputs import atomic_open
+from rovermarl.record.atomic import atomic_open
 
 FLUSH_S = 60.0                                       # the SDK's flush into memory; it never waits on a disk
 

@@ -12,7 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rovermarl.env import World
 from rovermarl.jit import said
-from rovermarl.record.outputs import faults_off
+from rovermarl.record.atomic import faults_off
 from rovermarl.runner.job import run_job
 
 

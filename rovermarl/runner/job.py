@@ -16,10 +16,10 @@ from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
 from rovermarl.parallel import run_records
-from rovermarl.record import checkpoint, lock
+from rovermarl.record import atomic, checkpoint, lock
+from rovermarl.record.atomic import atomic_open
 from rovermarl.record.checkpoint import RunRecord
 from rovermarl.record.outputs import (
-    atomic_open,
     close_launch,
     finished,
     launch_progress,
@@ -101,7 +101,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         meta = finished(out, key) if cfg.resume else None
         if meta is not None and (problem := verify(out, meta) or _no_curve(out, cfg.generations)):
             log.warning("%s: seed %d: %s; recomputing the run", name, seed, problem)
-            (out / "run.json").unlink()
+            atomic.remove(out / "run.json")
             meta = None
         if meta is not None and not same_code(meta.get("provenance")):
             other_code.append(meta.get("provenance"))
@@ -126,7 +126,6 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
 
     _saved_generations(job_dir / ".hydra" / "config.yaml", cfg.generations)
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
-        job_dir.mkdir(parents=True, exist_ok=True)
         with atomic_open(job_dir / "config.yaml", "w") as f:
             f.write(OmegaConf.to_yaml(job))
     rrd = partial(_rrd, world=built.world, record=cfg.record, series=series) if cfg.record.rerun else None
@@ -255,7 +254,7 @@ def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
     n = 1
     while aside.exists():
         aside, n = out.with_name(f"{out.name}.{other[:12]}.{n}"), n + 1
-    out.rename(aside)
+    atomic.replace(out, aside)
     log.warning("%s: %s was made under another identity (config hash %s): moved to %s; the run starts afresh",
                 name, out.name, other[:12], aside.name)
 
