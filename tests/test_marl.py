@@ -1,0 +1,73 @@
+"""MAPPO and IPPO from TorchRL (the [marl] extra): the plug-ins train, resume bit-identically, their team is the
+shared actor's deterministic policy (a genome the world scores) and their held-out score is the runner's. Skipped
+where torchrl is absent; slow (CI runs it in its slow subset, after pip install -e ".[marl]")."""
+
+import numpy as np
+import pytest
+
+pytest.importorskip("torchrl", reason="the [marl] extra (torch, torchrl) is not installed")
+
+import torch  # noqa: E402
+from tensordict import TensorDict  # noqa: E402
+
+from rovermarl import policy  # noqa: E402
+from rovermarl.config import compose_config  # noqa: E402
+from rovermarl.env import make_world  # noqa: E402
+from rovermarl.errors import ConfigError  # noqa: E402
+from rovermarl.marl import A, _agents  # noqa: E402
+from rovermarl.runner.chunk import advance, parts, to_plain  # noqa: E402
+from rovermarl.runner.validate import validate  # noqa: E402
+from tests.conftest import make_cfg  # noqa: E402
+
+pytestmark = pytest.mark.slow
+
+SMALL = ("+algorithm.num_envs=16", "+algorithm.minibatches=4", "+algorithm.n_epochs=2", "record=off")
+
+
+@pytest.mark.parametrize("name", ["mappo", "ippo"])
+def test_it_trains_resumes_bit_identically_and_its_team_is_its_actor(name):
+    plain = to_plain(make_cfg(f"algorithm={name}", *SMALL, "setup=duo", "generations=4"))
+    whole = advance(plain, 1, None, 4)
+    first = advance(plain, 1, None, 2)
+    rest = advance(plain, 1, first["state"], 4)
+    assert np.array_equal(np.concatenate([first["score"], rest["score"]]), whole["score"])
+    got, want = rest["state"]["algorithm"], whole["state"]["algorithm"]
+    for key in want["params"]:
+        assert np.array_equal(got["params"][key], want["params"][key]), key
+        assert np.array_equal(got["adam"][key]["m"], want["adam"][key]["m"]), key
+    log_std = "actor_network_params.module.0.module.log_std"
+    assert not np.array_equal(first["state"]["algorithm"]["params"][log_std], want["params"][log_std])   # it learns
+    algo = parts(plain).algorithm
+    loss = algo._loss()
+    algo._load(loss, want)
+    world = make_world("duo")
+    obs = np.random.default_rng(0).uniform(0, 1, (8, 4, world.obs_dim + 1))              # sensors, t / T
+    loc, _ = loss.actor_network.module[0].module(TensorDict({A: _agents(obs, 8, 4)}, batch_size=[8])[A, "sensors"])
+    genomes = whole["genomes"]
+    assert genomes.shape == (4, world.n_params) and (genomes == genomes[0]).all()          # parameter sharing
+    assert np.allclose(np.tanh(loc.detach().numpy()), policy.forward(genomes[0], obs[..., :-1], world.policy.hidden),
+                       atol=1e-6)
+    assert whole["heldout_score"] == world.evaluate(genomes, world.heldout_ic(1, 256))
+
+
+def test_the_critics_differ_only_in_what_they_read():
+    mappo, ippo = (parts(to_plain(make_cfg(f"algorithm={n}", *SMALL))).algorithm._loss() for n in ("mappo", "ippo"))
+    w = make_world("solo")
+    first, second = ({k: tuple(v.shape) for k, v in loss.named_parameters()} for loss in (mappo, ippo))
+    critic = "critic_network_params.module.params.0.weight"
+    assert first[critic] == (64, 4 * (w.obs_dim + 1)) and second[critic] == (64, w.obs_dim + 1)   # every rover's; own
+    assert {k: v for k, v in first.items() if k.startswith("actor")} == {
+        k: v for k, v in second.items() if k.startswith("actor")}
+
+
+def test_budget_in_agent_steps_and_bad_settings_named():
+    cfg = compose_config("algorithm=mappo", "budget.agent_steps=19200000")
+    validate(cfg)
+    assert cfg.generations == 1250                                 # 256 envs x 15 steps x 4 rovers per iteration
+    cfg = compose_config("algorithm=ippo", "setup=coupling3", "budget.agent_steps=19200000")
+    validate(cfg)
+    assert cfg.generations == 19200000 // (256 * 15 * 6)
+    with pytest.raises(ConfigError, match="n_steps") as e:
+        parts(to_plain(make_cfg("algorithm=mappo", "+algorithm.n_steps=20")))
+    assert "\n" not in str(e.value)
+    assert torch.get_num_threads() >= 1
