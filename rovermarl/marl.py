@@ -10,7 +10,8 @@ conditions, its held-out score F on the run's 256 held-out ones (the runner's, n
 The two differ only in the critic (TorchRL's ``MultiAgentMLP``, tanh layers ``value_hidden``, shared parameters,
 each rover's sensors and the step t / T): MAPPO's is centralised (each rover's value reads every rover's
 observations), IPPO's decentralised (its own only). The loss is TorchRL's ``ClipPPOLoss`` with its ``GAE``; the
-update is ``n_epochs`` passes of ``minibatches`` shuffled minibatches with Adam and gradient clipping.
+update is ``n_epochs`` passes of ``minibatches`` shuffled minibatches with Adam and gradient clipping, the advantages
+normalised per minibatch and rover (as TorchRL's multi-agent PPO losses do).
 
 One generation is one iteration: ``n_steps`` steps (a multiple of ``env.steps``: each iteration starts on fresh
 episodes) of ``num_envs`` environments of :class:`rovermarl.vector.VectorEnv` stepped in one call each (no
@@ -28,6 +29,7 @@ try:
     import torch
     from tensordict import TensorDict
     from tensordict.nn import TensorDictModule
+    from torchrl.envs.utils import ExplorationType, set_exploration_type
     from torchrl.modules import MultiAgentMLP, ProbabilisticActor, TanhNormal
     from torchrl.objectives import ClipPPOLoss, ValueEstimators
 except ModuleNotFoundError as _e:
@@ -119,7 +121,7 @@ class MAPPO(Algorithm):
             in_keys=[(A, "observation")], out_keys=[(A, "state_value")])
         loss = ClipPPOLoss(actor, critic, clip_epsilon=self.clip_epsilon, entropy_bonus=self.entropy_coef > 0,
                            entropy_coeff=self.entropy_coef, critic_coeff=self.critic_coef, loss_critic_type="l2",
-                           normalize_advantage=True)
+                           normalize_advantage=True, normalize_advantage_exclude_dims=(-2,))   # per rover (TorchRL's)
         loss.set_keys(reward=(A, "reward"), action=(A, "action"), sample_log_prob=(A, "log_prob"),
                       value=(A, "state_value"), done=(A, "done"), terminated=(A, "terminated"))
         loss.make_value_estimator(ValueEstimators.GAE, gamma=self.gamma, lmbda=self.lmbda)
@@ -188,7 +190,7 @@ class MAPPO(Algorithm):
         steps = []
         for _ in range(self.n_steps):
             td = TensorDict({A: _agents(obs, b, n)}, batch_size=[b])
-            with torch.no_grad():
+            with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):   # sampled (the default: its mode)
                 actor(td)
             nxt, rew, term, _, infos = env.step(td[A, "action"].numpy())
             last = "final_obs" in infos

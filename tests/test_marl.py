@@ -17,6 +17,7 @@ from rovermarl.errors import ConfigError  # noqa: E402
 from rovermarl.marl import A, _agents  # noqa: E402
 from rovermarl.runner.chunk import advance, parts, to_plain  # noqa: E402
 from rovermarl.runner.validate import validate  # noqa: E402
+from rovermarl.vector import VectorEnv  # noqa: E402
 from tests.conftest import make_cfg  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -48,6 +49,16 @@ def test_it_trains_resumes_bit_identically_and_its_team_is_its_actor(name):
     assert np.allclose(np.tanh(loc.detach().numpy()), policy.forward(genomes[0], obs[..., :-1], world.policy.hidden),
                        atol=1e-6)
     assert whole["heldout_score"] == world.evaluate(genomes, world.heldout_ic(1, 256))
+
+
+def test_it_trains_on_sampled_actions_with_their_log_probabilities():
+    algo = parts(to_plain(make_cfg("algorithm=mappo", *SMALL))).algorithm
+    loss = algo._loss()
+    data = algo._collect(loss.actor_network, VectorEnv(8, world=algo.world))
+    assert data.batch_size == torch.Size([8, 15]) and data[A, "action"].shape == (8, 15, 4, 2)
+    mode = torch.tanh(data[A, "loc"])                                      # the deterministic policy's actions
+    assert (data[A, "action"] - mode).abs().min() > 0 and data[A, "log_prob"].isfinite().all()
+    assert (data["next", A, "done"][:, -1]).all() and not data["next", A, "done"][:, :-1].any()
 
 
 def test_the_critics_differ_only_in_what_they_read():
