@@ -82,3 +82,35 @@ def test_budget_in_agent_steps_and_bad_settings_named():
         parts(to_plain(make_cfg("algorithm=mappo", "+algorithm.n_steps=20")))
     assert "\n" not in str(e.value)
     assert torch.get_num_threads() >= 1
+
+
+def test_a_mappo_job_killed_after_a_checkpoint_resumes_bit_identically(tmp_path):
+    """The CLI with budget.agent_steps on a coupling world: SIGINT after the first checkpoint, relaunch; the curves,
+    genomes and held-out scores equal an uninterrupted job's, and the summary records the coupling level."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from tests.conftest import ROOT, assert_same_curves, run_cli, start_until_checkpoint, sweep_curves
+    args = ("-m", "algorithm=mappo", *SMALL, "setup=coupling2", f"budget.agent_steps={16 * 15 * 4 * 8}", "seeds=1",
+            "checkpoint.every=2", "parallel=serial", "parallel.chunk=2")
+    sweep = tmp_path / "sweep"
+    argv = [sys.executable, "-W", "ignore", "-m", "rovermarl.train", *args, f"hydra.sweep.dir={sweep}"]
+    proc = start_until_checkpoint(argv, sweep)
+    os.killpg(proc.pid, signal.SIGINT)
+    proc.communicate(timeout=120)
+    out = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "resumes at generation" in out.stdout + out.stderr
+    ref = run_cli(*args, f"hydra.sweep.dir={tmp_path / 'ref'}", timeout=600)
+    assert ref.returncode == 0, ref.stderr[-2000:]
+    got = sweep_curves(sweep)
+    assert_same_curves(got, sweep_curves(tmp_path / "ref"))
+    assert next(iter(got.values()))["score"].shape == (9,)                  # 8 iterations of 16 x 15 x 4
+    genomes = [np.load(p) for d in (sweep, tmp_path / "ref") for p in d.glob("*/runs/seed_000/genomes.npy")]
+    assert len(genomes) == 2 and np.array_equal(*genomes)
+    summaries = [json.loads(p.read_text()) for d in (sweep, tmp_path / "ref") for p in d.glob("*/summary.json")]
+    assert len(summaries) == 2 and summaries[0]["heldout_score"] == summaries[1]["heldout_score"]
+    assert summaries[0]["coupling_level"] == 2
