@@ -5,7 +5,9 @@
 #   Worlds:   solo, duo, trio (conf/setup), obstacles, random_pois (examples/), moving_pois once examples/moving_pois
 #             exists (skipped until then).
 #   Learners: CC-(1+1)-ES k=1, k=adaptive and homogeneous; the CCEA with D++; sep-CMA-ES over the team; PPO with
-#             parameter sharing (stable-baselines3: pip install -e ".[rl]"; skipped without it).
+#             parameter sharing (stable-baselines3: pip install -e ".[rl]"; skipped without it); mappo and ippo
+#             (TorchRL: pip install -e ".[marl]") run when named in LEARNERS (e.g. LEARNERS="mappo ippo"
+#             WORLDS="solo duo trio"), not by default: the committed table has no column for them yet.
 # One job at a time (parallel=serial, record=off); after each, the compact results of every finished job of OUT go into
 # RESULTS (python -m rovermarl.analysis export), then docs/LEARNERS.md is regenerated (analysis learners).
 # Resumable, also across machines and sessions: a job whose compact files are in RESULTS is skipped, one whose runs are
@@ -43,6 +45,7 @@ learner() {  # learner NAME: its overrides
         ccea_dpp) echo "algorithm=ccea algorithm.reward=dpp" ;;
         cma) echo "algorithm=cma" ;;
         ppo) echo "algorithm=ppo checkpoint.every=25 parallel.chunk=25" ;;   # a checkpoint every ~6 min
+        mappo | ippo) echo "algorithm=$1 checkpoint.every=25 parallel.chunk=25" ;;   # TorchRL: the [marl] extra
         *) echo "$(basename "$0"): error: LEARNERS: no learner '$1'" >&2; exit 2 ;;
     esac
 }
@@ -50,6 +53,8 @@ learner() {  # learner NAME: its overrides
 
 rl=yes
 "$PYTHON" -c 'import torch, stable_baselines3' 2>/dev/null || rl=no
+marl=yes
+"$PYTHON" -c 'import torch, torchrl' 2>/dev/null || marl=no
 for w in $WORLDS; do
     read -ra wo <<< "$(world "$w")"
     if [ "${#wo[@]}" -eq 0 ]; then
@@ -60,6 +65,10 @@ for w in $WORLDS; do
         read -ra lo <<< "$(learner "$l")"
         if [ "$l" = ppo ] && [ "$rl" = no ]; then
             echo "$(basename "$0"): $w/ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
+            continue
+        fi
+        if { [ "$l" = mappo ] || [ "$l" = ippo ]; } && [ "$marl" = no ]; then
+            echo "$(basename "$0"): $w/$l: torch and torchrl are not installed (pip install -e \".[marl]\"): skipped" >&2
             continue
         fi
         read -ra par <<< "$PARALLEL"
