@@ -41,3 +41,33 @@ def test_a_job_records_its_coupling_level(tmp_path):
                   f"hydra.run.dir={tmp_path / 'solo'}", timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "coupling_level" not in json.loads((tmp_path / "solo" / "summary.json").read_text())
+
+
+FAKE_PYTHON = r"""#!/usr/bin/env bash
+echo "$*" >> "$LAUNCH_LOG"
+"""
+
+
+def test_the_launcher_runs_every_family_at_every_level_and_refuses_an_unknown_level(tmp_path):
+    import os
+    import subprocess
+
+    from tests.conftest import ROOT
+    fake = tmp_path / "python"
+    fake.write_text(FAKE_PYTHON)
+    fake.chmod(0o755)
+    env = {**os.environ, "PYTHON": str(fake), "LAUNCH_LOG": str(tmp_path / "log"), "OUT": str(tmp_path / "out"),
+           "RESULTS": str(tmp_path / "results"), "AGENT_STEPS": "96000", "SEEDS": "2"}
+    proc = subprocess.run(["bash", "launchers/coupling.sh", "parallel=serial"], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    trains = [line for line in (tmp_path / "log").read_text().splitlines() if line.startswith("-m rovermarl.train")]
+    assert len(trains) == 6 * 7
+    for c in LEVELS:
+        mine = [t for t in trains if f"setup=coupling{c} " in t]
+        assert len(mine) == 7 and all("budget.agent_steps=96000" in t and "seeds=2" in t for t in mine)
+        assert {a for t in mine for a in t.split() if a.startswith("algorithm=")} == {
+            "algorithm=ccea", "algorithm=cma", "algorithm=ppo", "algorithm=mappo", "algorithm=ippo"}
+    proc = subprocess.run(["bash", "launchers/coupling.sh"], cwd=ROOT, env={**env, "LEVELS": "1 7"},
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "no coupling level '7'" in proc.stderr
