@@ -4,13 +4,14 @@
 # rovers), SEEDS runs each, every final team also scored on its run's 256 held-out initial conditions.
 #   Worlds:   solo, duo, trio (conf/setup), obstacles, random_pois, moving_pois (examples/).
 #   Learners: CC-(1+1)-ES k=1, k=adaptive and homogeneous; the CCEA with D++; sep-CMA-ES over the team; PPO with
-#             parameter sharing (stable-baselines3: pip install -e ".[rl]"; skipped without it).
+#             parameter sharing (stable-baselines3: pip install -e ".[rl]"); MAPPO and IPPO (TorchRL: pip install -e
+#             ".[marl]"). A learner whose extra is not installed is skipped with a message.
 #   Regimes:  fixed (evaluation.fresh_ic=false: each run trains on its 16 initial conditions; PPO's environments start
 #             from them in turn) on every world; fresh (evaluation.fresh_ic=true: new initial conditions every
 #             generation, the kept team re-scored beside the new ones) on FRESH_WORLDS (solo, duo, trio).
-#   Final team: the best kept so far for every learner (CC-ES and sep-CMA-ES are elitist; the CCEA and PPO are told
-#             algorithm.final_team=best).
-# Jobs run learner by learner, PPO last (it takes ~20x the others' time). After each, the compact results of every
+#   Final team: the best kept so far for every learner (CC-ES and sep-CMA-ES are elitist; the CCEA, PPO, MAPPO and
+#             IPPO are told algorithm.final_team=best).
+# Jobs run learner by learner, the RL learners last (they take ~20x the others' time). After each, the compact results of every
 # finished job of OUT go into RESULTS (python -m rovermarl.analysis export), then docs/LEARNERS.md is regenerated.
 # Resumable, also across machines and sessions: a job whose compact files are in RESULTS, made from a committed tree
 # (provenance dirty: false) with its regime recorded, is skipped; any other is (re)computed, its runs resuming in OUT
@@ -32,7 +33,7 @@ FRESH_WORLDS="${FRESH_WORLDS:-solo duo trio}"
 REGIMES="${REGIMES:-fixed fresh}"
 DOC="${DOC:-docs/LEARNERS.md}"                 # where the report so far goes
 PARALLEL="${PARALLEL:-parallel=serial}"        # how a job's seeds run: one after another, or on Ray
-LEARNERS="${LEARNERS:-cces_k1 cces_adaptive cces_homogeneous ccea_dpp cma ppo}"
+LEARNERS="${LEARNERS:-cces_k1 cces_adaptive cces_homogeneous ccea_dpp cma ppo mappo ippo}"
 # shellcheck source=launchers/_sweep.sh
 source "$(dirname "$0")/_sweep.sh"
 results_dir learners 19200000 8 "$@"
@@ -53,7 +54,7 @@ learner() {  # learner NAME: its overrides
         cces_homogeneous) echo "team=homogeneous" ;;
         ccea_dpp) echo "algorithm=ccea algorithm.reward=dpp +algorithm.final_team=best" ;;
         cma) echo "algorithm=cma" ;;
-        ppo) echo "algorithm=ppo +algorithm.final_team=best checkpoint.every=25 parallel.chunk=25" ;;
+        ppo | mappo | ippo) echo "algorithm=$1 +algorithm.final_team=best checkpoint.every=25 parallel.chunk=25" ;;
         *) echo "$(basename "$0"): error: LEARNERS: no learner '$1'" >&2; exit 2 ;;
     esac
 }
@@ -76,15 +77,21 @@ sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and (s.get("provenance") o
 ' "$1/summary.json" 2>/dev/null
 }
 
-rl=yes
-"$PYTHON" -c 'import torch, stable_baselines3' 2>/dev/null || rl=no
+extra() {  # extra NAME: the modules a learner needs and its extra ("" when it needs none)
+    case "$1" in
+        ppo) echo "torch,stable_baselines3 rl" ;;
+        mappo | ippo) echo "torch,torchrl marl" ;;
+    esac
+}
+
 ordered=()
-for l in $LEARNERS; do [ "$l" != ppo ] && ordered+=("$l"); done
-for l in $LEARNERS; do [ "$l" = ppo ] && ordered+=("$l"); done
+for l in $LEARNERS; do case "$l" in ppo | mappo | ippo) ;; *) ordered+=("$l") ;; esac; done
+for l in $LEARNERS; do case "$l" in ppo | mappo | ippo) ordered+=("$l") ;; esac; done
 for l in "${ordered[@]}"; do
     read -ra lo <<< "$(learner "$l")"
-    if [ "$l" = ppo ] && [ "$rl" = no ]; then
-        echo "$(basename "$0"): ppo: torch and stable-baselines3 are not installed (pip install -e \".[rl]\"): skipped" >&2
+    read -r modules ext <<< "$(extra "$l")"
+    if [ -n "$modules" ] && ! "$PYTHON" -c "import $modules" 2>/dev/null; then
+        echo "$(basename "$0"): $l: $modules not installed (pip install -e \".[$ext]\"): skipped" >&2
         continue
     fi
     for r in $REGIMES; do

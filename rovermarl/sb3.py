@@ -44,7 +44,7 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import Algorithm, generator
+from rovermarl.algorithms.base import FINAL_TEAMS, Algorithm, generator, keep_best, train_starts
 from rovermarl.env import World
 from rovermarl.vector import DEFAULTS, VectorEnv
 
@@ -146,7 +146,7 @@ class PPO(Algorithm):
                  value_hidden: tuple = (64, 64), final_team: str = "last", loop: str = "auto"):
         super().__init__(world)
         errors.choice("loop", loop, ("auto", "python"))
-        self.final_team = errors.choice("final_team", final_team, ("last", "best"))
+        self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
         self.num_envs = errors.integer("num_envs", num_envs, 1, 1_000_000)
         self.n_steps = errors.integer("n_steps", n_steps, world.steps, 1_000_000)
         if self.n_steps % world.steps:
@@ -183,17 +183,6 @@ class PPO(Algorithm):
         evaluation besides)."""
         return self.agent_steps_per_generation(fresh_ic)
 
-    @staticmethod
-    def _starts(evaluate):
-        """The starts the environments take in turn: the run's own (``fixed``), or None (``fresh``: drawn)."""
-        if evaluate.fresh:
-            return None
-        inputs = evaluate.kernel_inputs()
-        if inputs is None:
-            raise errors.ConfigError("evaluation.fresh_ic", False, "PPO needs the run's initial conditions in its "
-                                     "own process to train on them")
-        return inputs.ic
-
     def _model(self, starts=None):
         env = VecEnv(self.num_envs, world=self.world, time_feature=True, starts=starts)
         return _SB3PPO(GenomePolicy, env, policy_kwargs=self.policy_kwargs, device="cpu", verbose=0, **self.kwargs)
@@ -201,7 +190,7 @@ class PPO(Algorithm):
     def _init(self, streams, evaluate):
         seeds = np.random.default_rng(streams.algorithm).integers(0, 2**63, 2)
         with _Rng({"torch": _torch_state(int(seeds[0])), "numpy": None}) as rng:
-            model = self._model(self._starts(evaluate))
+            model = self._model(train_starts(evaluate))
             state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
                                cursor=0)
         state["numpy"] = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
@@ -227,7 +216,7 @@ class PPO(Algorithm):
         score, score_before = np.empty(n), float(state["score"])
         best = self.final_team == "best"
         with _Rng({"torch": torch.get_rng_state().numpy(), "numpy": None}):
-            model = self._model(self._starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
+            model = self._model(train_starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
         with _Rng(state) as rng:
             kept = np.asarray(state["best"], dtype=np.float64) if best else None
             self._load(model, state)
@@ -240,14 +229,11 @@ class PPO(Algorithm):
                 if evaluate.fresh:
                     evaluate.draw(generation + t + 1)
                 team = self._genomes(state["params"])
-                f, final_xy = evaluate.measure(team)
+                measured = evaluate.measure(team)
                 if best:                                   # the kept iterate against the new one, same starts
-                    f_kept = evaluate.score(self.world.homogeneous(kept)) if evaluate.fresh else score_before
-                    if f >= f_kept:
-                        kept = team[0].copy()
-                    else:
-                        team, f, final_xy = self.world.homogeneous(kept), f_kept, None
-                    state["best"] = kept
+                    team, measured = keep_best(evaluate, self.world.homogeneous(kept), score_before, team, measured)
+                    kept = state["best"] = team[0].copy()
+                f, final_xy = measured
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
                 score[t] = state["score"] = score_before = f
         return state, {"score": score}

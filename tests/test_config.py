@@ -22,14 +22,17 @@ def test_groups_are_the_documented_ones():
                              "algorithm"}
     assert {o for g, o in OPTIONS if g == "k"} == {"1", "2", "3", "4", "adaptive", "ucb1", "thompson", "egreedy",
                                                    "exp3s", "schedule"}
-    assert {o for g, o in OPTIONS if g == "setup"} == {"solo", "duo", "trio", "trio6", "solo20"}
+    assert {o for g, o in OPTIONS if g == "setup"} == {"solo", "duo", "trio", "trio6", "solo20",
+                                                       *(f"coupling{c}" for c in range(1, 7))}
 
 
 @pytest.mark.parametrize("group, option", OPTIONS)
 def test_every_option_composes_and_instantiates(group, option):
     cfg = make_cfg(f"{group}={option}")
-    if (group, option) == ("algorithm", "ppo") and importlib.util.find_spec("torch") is None:
-        with pytest.raises(ConfigError, match=r'pip install -e "\.\[rl\]"'):   # the suite runs without [rl]
+    module, extra = {"ppo": ("stable_baselines3", "rl"), "mappo": ("torchrl", "marl"),
+                     "ippo": ("torchrl", "marl")}.get(option if group == "algorithm" else "", (None, None))
+    if module and importlib.util.find_spec(module) is None:
+        with pytest.raises(ConfigError, match=rf'pip install -e "\.\[{extra}\]"'):   # the suite runs without it
             validate(cfg)
             build(cfg)
         return

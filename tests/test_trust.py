@@ -192,7 +192,8 @@ def test_the_allow_list_is_the_packaged_config_groups():
     assert set(allow.classes) == {"algorithm", "k", "mutation", "selection", "team"}
     ops = "rovermarl.algorithms.operators."
     assert allow.classes["algorithm"] == {"rovermarl.algorithms.cc11es.CC11ES", "rovermarl.algorithms.ccea.CCEA",
-                                          "rovermarl.algorithms.cma.SepCMA", "rovermarl.sb3.PPO"}
+                                          "rovermarl.algorithms.cma.SepCMA", "rovermarl.sb3.PPO",
+                                          "rovermarl.marl.MAPPO", "rovermarl.marl.IPPO"}
     assert allow.classes["k"] == {ops + f"selectors.{c}" for c in
                                   ("FixedK", "EXP3", "EXP3S", "EpsilonGreedy", "Schedule", "Thompson", "UCB1")}
     assert allow.classes["mutation"] == {ops + "mutation.MixedMutation"}

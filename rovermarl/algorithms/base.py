@@ -261,6 +261,33 @@ class Algorithm:
         raise NotImplementedError
 
 
+FINAL_TEAMS = ("last", "best")
+
+
+def keep_best(evaluate: Evaluator, kept: np.ndarray, kept_score: float, team: np.ndarray, measured: Measured):
+    """The final-team rule ``best``, its one source: the new ``team`` (N, P) scored ``measured`` replaces the ``kept``
+    one (N, P) when it scores at least as well on the same initial conditions (under ``evaluation.fresh_ic`` the kept
+    one is scored again on this generation's, beside it: one more team evaluation; else ``kept_score`` is its
+    score). Returns the team kept with its score and final positions: ``(team, Measured)``."""
+    if evaluate.fresh:
+        kept_score = evaluate.score(kept)
+    if measured.score >= kept_score:
+        return team, measured
+    return kept, Measured(float(kept_score), None)
+
+
+def train_starts(evaluate: Evaluator) -> InitialConditions | None:
+    """The starts a learner that steps environments itself trains on, in turn: the run's own under
+    ``evaluation.fresh_ic=false`` (``fixed``), None under ``fresh`` (its environments draw new ones)."""
+    if evaluate.fresh:
+        return None
+    inputs = evaluate.kernel_inputs()
+    if inputs is None:
+        raise errors.ConfigError("evaluation.fresh_ic", False, "this learner needs the run's initial conditions in "
+                                 "its own process to train on them (use parallel.ic_shards=1)")
+    return inputs.ic
+
+
 BIT_GENERATORS = {c.__name__: c for c in (np.random.PCG64, np.random.PCG64DXSM, np.random.Philox, np.random.SFC64,
                                           np.random.MT19937)}   # numpy's, by the name their state carries
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, Series, build_operator, generator
+from rovermarl.algorithms.base import FINAL_TEAMS, LOOPS, Algorithm, Series, build_operator, generator, keep_best
 from rovermarl.algorithms.credit import CREDITS, credit
 
 
@@ -41,7 +41,7 @@ class CCEA(Algorithm):
     def __init__(self, world, mutation, pop_size: int = 10, elites: int = 1, reward: str = "global",
                  init_low: float = -2.0, init_high: float = 2.0, final_team: str = "last", loop: str = "auto"):
         super().__init__(world)
-        self.final_team = errors.choice("final_team", final_team, ("last", "best"))
+        self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
         if errors.choice("loop", loop, LOOPS) == "compiled":
             raise errors.ConfigError("loop", loop, "the CCEA has no compiled generation loop (auto and python run "
                                      "its Python one)")
@@ -91,16 +91,12 @@ class CCEA(Algorithm):
             fitness = self._fitness(pops, teams, evaluate)                                  # 2. credit
             pops, h["fitness"][t] = self._select(pops, fitness, rng)                        # 3. select, mutate
             team = _elites(pops)
-            f, final_xy = evaluate.measure(team)                                            # 4. the elites team
+            measured = evaluate.measure(team)                                               # 4. the elites team
             evals += self.pop_size + 1
             if keep:                                                                        # the kept team
-                if evaluate.fresh:
-                    f_kept, evals = evaluate.score(kept), evals + 1
-                if f >= f_kept:
-                    kept = team
-                else:
-                    team, f, final_xy = kept, f_kept, None
-                f_kept = f
+                kept, measured = keep_best(evaluate, kept, f_kept, team, measured)
+                team, f_kept, evals = kept, measured.score, evals + evaluate.fresh
+            f, final_xy = measured
             observer.accepted(generation + t + 1, team, f, f > best, final_xy)
             best = max(best, f)
             score[t], h["team_evals"][t] = f, evals

@@ -169,6 +169,8 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     summary["agent_steps_per_generation"] = built.algorithm.agent_steps_per_generation(built.evaluation["fresh_ic"])
     summary["own_agent_steps_per_generation"] = built.algorithm.own_agent_steps_per_generation(
         built.evaluation["fresh_ic"])
+    if cfg.setup.get("coupling_level") is not None:                # the coupling family (conf/setup/coupling*.yaml)
+        summary["coupling_level"] = int(cfg.setup.coupling_level)
     write_json(summary_path, summary)
     close_launch(job_dir, {"started_at": started, "finished_at": time.time(), "wall_time_s": wall,
                            "team_evals": summary["team_evals"], "runs_advanced": len(todo)})
