@@ -10,6 +10,7 @@ GENERATIONS="${GENERATIONS:-200000}"
 SEEDS="${SEEDS:-16}"
 OUT="${OUT:-outputs/paper}"
 PYTHON="${PYTHON:-python}"
+STUDIES="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)/studies"   # the studies' report scripts: STUDIES/<name>/report.py
 FIGURES="${FIGURES:-yes}"
 
 figures() {  # figures RESULTS_DIR PLOT_OPTION...: the study's figures into RESULTS_DIR/figures, unless FIGURES=no

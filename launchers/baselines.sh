@@ -22,10 +22,10 @@ if [ -n "${SETUPS:-}" ] && [ -z "${RESULTS:-}" ]; then   # a subset of the setup
 fi
 results_dir baselines 400000 16 "$@"
 CCEA_GENERATIONS=$(( (EVALS - 1 + POP) / (POP + 1) ))
-# Each job: its overrides | its method as the analysis labels it (rovermarl.analysis.baselines.METHODS).
+# Each job: its overrides | its method as the analysis labels it (studies/baselines/report.py: METHODS).
 JOBS=("k=1|k=1" "k=2|k=2" "k=adaptive|adaptive" "algorithm=ccea algorithm.reward=global|ccea G"
       "algorithm=ccea algorithm.reward=difference|ccea D" "algorithm=ccea algorithm.reward=dpp|ccea D++")
-DONE="$("$PYTHON" -m rovermarl.analysis baselines done "$RESULTS")"
+DONE="$("$PYTHON" "$STUDIES"/baselines/report.py done "$RESULTS")"
 for setup in ${SETUPS:-duo solo trio}; do
     for job in "${JOBS[@]}"; do
         if grep -qxF "$setup ${job#*|}" <<< "$DONE"; then
@@ -36,10 +36,10 @@ for setup in ${SETUPS:-duo solo trio}; do
         budget="$EVALS"
         [ "${overrides[0]}" = algorithm=ccea ] && budget="$CCEA_GENERATIONS"
         GENERATIONS="$budget" sweep "${overrides[@]}" "setup=$setup" "$@"
-        "$PYTHON" -m rovermarl.analysis baselines export "$OUT" "$RESULTS"
+        "$PYTHON" "$STUDIES"/baselines/report.py export "$OUT" "$RESULTS"
     done
 done
-"$PYTHON" -m rovermarl.analysis baselines report "$RESULTS"
+"$PYTHON" "$STUDIES"/baselines/report.py report "$RESULTS"
 if [ "$FIGURES" != no ]; then
-    "$PYTHON" -m rovermarl.analysis baselines figures "$RESULTS"
+    "$PYTHON" "$STUDIES"/baselines/report.py figures "$RESULTS"
 fi

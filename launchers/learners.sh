@@ -114,7 +114,7 @@ for l in "${ordered[@]}"; do
             fi
             "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
             "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config
-            "$PYTHON" -m rovermarl.analysis learners "$RESULTS" --doc "$DOC" || true   # the report so far
+            "$PYTHON" "$STUDIES"/learners/report.py "$RESULTS" --doc "$DOC" || true   # the report so far
         done
     done
 done

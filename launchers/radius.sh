@@ -5,7 +5,7 @@
 # study used them). 24 jobs, one at a time; after each, the compact results of every finished job of OUT go into
 # RESULTS (python -m rovermarl.analysis export, with each run's final team): RESULTS/<job>/{summary.json,
 # config.yaml,curves.npz,genomes.npz} and RESULTS/compute.json.
-# The criteria were fixed before any run (issue 43; python -m rovermarl.analysis radius reports them). A radius
+# The criteria were fixed before any run (issue 43; python studies/radius/report.py reports them). A radius
 # reproduces the paper's picture only if all four hold:
 #   1. duo k=1 and k=2 each have at least 8 of 16 runs ending at 5 or more;
 #   2. at least one duo k=1 or k=2 run ends at 6;

@@ -31,8 +31,8 @@ duo "$@"                                      # the SPEC reading
 for reading in "${READINGS[@]}"; do
     duo "$reading" "$@"
 done
-"$PYTHON" -m rovermarl.analysis readings export "$OUT" "$RESULTS"
-mapfile -t lifting < <("$PYTHON" -m rovermarl.analysis readings lifting "$RESULTS")
+"$PYTHON" "$STUDIES"/readings/report.py export "$OUT" "$RESULTS"
+mapfile -t lifting < <("$PYTHON" "$STUDIES"/readings/report.py lifting "$RESULTS")
 echo "$(basename "$0"): readings that lift duo: ${lifting[*]:-none}" >&2
 for reading in "${lifting[@]}"; do
     sweep k=1 setup=solo "$reading" "$@"
@@ -49,5 +49,5 @@ done
 if [ "${#combination[@]}" -gt 1 ]; then
     duo "${combination[@]}" "$@"
 fi
-"$PYTHON" -m rovermarl.analysis readings export "$OUT" "$RESULTS"
-"$PYTHON" -m rovermarl.analysis readings report "$RESULTS"
+"$PYTHON" "$STUDIES"/readings/report.py export "$OUT" "$RESULTS"
+"$PYTHON" "$STUDIES"/readings/report.py report "$RESULTS"

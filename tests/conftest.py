@@ -1,3 +1,5 @@
+import functools
+import importlib.util
 import os
 import subprocess
 import sys
@@ -32,6 +34,23 @@ def run_cli(*args: str, module: str = "rovermarl.train", cwd: Path | None = None
     full_env = {**os.environ, **(env or {})}
     return subprocess.run([sys.executable, "-m", module, *args], cwd=cwd or ROOT, env=full_env,
                           capture_output=True, text=True, timeout=timeout)
+
+
+@functools.cache
+def study_module(name: str):
+    """The module ``studies/<name>/report.py`` (studies/ is no installed package: loaded by its path)."""
+    spec = importlib.util.spec_from_file_location(f"studies_{name}_report", ROOT / "studies" / name / "report.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module                      # (dataclasses look their module up there)
+    spec.loader.exec_module(module)
+    return module
+
+
+def run_study(name: str, *args: str, cwd: Path | None = None, env: dict | None = None,
+              timeout: int = 300) -> subprocess.CompletedProcess:
+    """``python studies/<name>/report.py ARGS``, as a user runs it."""
+    return subprocess.run([sys.executable, str(ROOT / "studies" / name / "report.py"), *args], cwd=cwd or ROOT,
+                          env={**os.environ, **(env or {})}, capture_output=True, text=True, timeout=timeout)
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,7 @@ import pytest
 import yaml
 
 from rovermarl.runner.job import run_job
-from tests.conftest import ROOT, make_cfg, run_cli
+from tests.conftest import ROOT, make_cfg, run_cli, run_study
 
 JOB = "generations=30,k=1,setup=duo"
 SWEEP = ("-m", "k=1", "setup=duo", "generations=30", "seeds=1", "parallel=serial")
@@ -103,8 +103,7 @@ def test_readings_export_imports_no_planted_world(sweep, tmp_path):
     sw = _copy(sweep, tmp_path)
     marker = tmp_path / "PWNED"
     _planted_job(sw, marker, tmp_path)
-    proc = run_cli("readings", "export", str(sw), str(tmp_path / "out"), module="rovermarl.analysis", cwd=tmp_path,
-                   env=ENV)
+    proc = run_study("readings", "export", str(sw), str(tmp_path / "out"), cwd=tmp_path, env=ENV)
     assert not marker.exists()
     assert "env._target_" in _one_line(proc)
 

@@ -9,8 +9,9 @@ import sys
 
 import pytest
 
-from rovermarl.analysis import baselines
-from tests.conftest import ROOT
+from tests.conftest import ROOT, study_module
+
+baselines = study_module("baselines")
 
 COMMITTED = ROOT / "results" / "baselines"
 DOC = ROOT / "docs" / "BASELINES.md"

@@ -3,8 +3,11 @@ its reading holds to them (every number read from results/, none pinned here).""
 
 import numpy as np
 
-from rovermarl.analysis.budget_geometry import _jobs, block, budget_rise, duo_picture, report, solo_c3
-from tests.conftest import ROOT
+from tests.conftest import ROOT, study_module
+
+bg = study_module("budget_geometry")
+_jobs, block, budget_rise, duo_picture, report, solo_c3 = (
+    bg._jobs, bg.block, bg.budget_rise, bg.duo_picture, bg.report, bg.solo_c3)
 
 DOC = (ROOT / "docs" / "REPRODUCTION.md").read_text()
 READING = " ".join(DOC[DOC.index("Reading. Ten times the budget"):DOC.index("## The radius study")].split())

@@ -10,7 +10,7 @@ from rovermarl.errors import ConfigError
 from rovermarl.runner.chunk import advance, parts, to_plain
 from rovermarl.runner.identity import config_hash
 from rovermarl.runner.validate import validate
-from tests.conftest import make_cfg
+from tests.conftest import make_cfg, study_module
 
 
 @pytest.mark.parametrize("algorithm,generations", [("cc11es", 20000), ("ccea", 1818), ("cma", 740)])
@@ -69,15 +69,15 @@ def test_a_missing_rl_extra_is_named_in_one_line():
 def test_docs_learners_is_generated_from_the_committed_results():
     from pathlib import Path
 
-    from rovermarl.analysis import learners
+    learners = study_module("learners")
     root = Path(__file__).resolve().parents[1]
     doc = (root / "docs" / "LEARNERS.md").read_text()
     assert learners.block(doc) == learners.report(root / "results" / "learners"), \
-        "docs/LEARNERS.md is stale: python -m rovermarl.analysis learners results/learners"
+        "docs/LEARNERS.md is stale: python studies/learners/report.py results/learners"
 
 
 def test_learner_cells_are_named_from_their_overrides_and_holm_adjusts():
-    from rovermarl.analysis.learners import classify
+    classify = study_module("learners").classify
     from rovermarl.analysis.stats import holm
     assert classify("budget.agent_steps=19200000,k=1,setup=solo") == ("solo", "cces_k1", "fixed")
     assert classify("algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=1000,env=obstacles") == (
@@ -112,7 +112,7 @@ def test_the_learners_reading_is_the_datas():
 
     from scipy.stats import mannwhitneyu
 
-    from rovermarl.analysis import learners
+    learners = study_module("learners")
     root = Path(__file__).resolve().parents[1] / "results" / "learners"
     doc = learners.block((root.parents[1] / "docs" / "LEARNERS.md").read_text())
     found = {}

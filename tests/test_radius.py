@@ -3,8 +3,11 @@ criteria are applied exactly as issue 43 wrote them (each bound checked on synth
 
 import json
 
-from rovermarl.analysis.radius import CRITERIA, RADII, block, passing, report, verdicts
-from tests.conftest import ROOT
+from tests.conftest import ROOT, study_module
+
+radius = study_module("radius")
+CRITERIA, RADII, block, passing, report, verdicts = (radius.CRITERIA, radius.RADII, radius.block, radius.passing,
+                                                    radius.report, radius.verdicts)
 
 DOC = (ROOT / "docs" / "REPRODUCTION.md").read_text()
 JOBS = {("duo", "k=1"): "k=1", ("duo", "k=2"): "k=2", ("duo", "homogeneous"): "team=homogeneous",

@@ -12,8 +12,9 @@ import time
 import numpy as np
 import pytest
 
-from rovermarl.analysis import readings
-from tests.conftest import ROOT
+from tests.conftest import ROOT, study_module
+
+readings = study_module("readings")
 
 COMMITTED = ROOT / "results" / "readings"
 

@@ -12,7 +12,7 @@ from rovermarl import errors
 from rovermarl.config import compose_config
 from rovermarl.runner.job import run_job
 from rovermarl.runner.trust import check_targets, groups
-from tests.conftest import make_cfg, run_cli
+from tests.conftest import make_cfg, run_cli, run_study
 
 JOB = "k=1,setup=duo"
 OPERATORS = ("k", "selection", "team", "mutation")
@@ -120,10 +120,10 @@ def test_no_read_path_runs_a_target_from_the_results(finished_job, tmp_path):
     assert export.stderr.strip().splitlines()[-1] == (
         f"rovermarl.analysis: error: algorithm.mutation._target_=builtins.open: is outside rovermarl, in {job}: "
         "a results directory may not run code; pass --trust-config if you trust it")
-    for argv, module in ((["readings", "export", str(sweep), str(tmp_path / "r")], "rovermarl.analysis"),
+    for argv, module in ((["export", str(sweep), str(tmp_path / "r")], "studies/readings"),
                          ([str(sweep), "--out", str(tmp_path / "fig")], "rovermarl.plot"),
                          ([str(run), "--resim", "--no-viewer"], "rovermarl.replay")):
-        proc = run_cli(*argv, module=module)
+        proc = run_study("readings", *argv) if module == "studies/readings" else run_cli(*argv, module=module)
         assert "Traceback" not in proc.stderr, (module, proc.stderr[-2000:])
     assert not pwned.exists()
 
