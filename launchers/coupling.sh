@@ -9,11 +9,12 @@
 #             (stable-baselines3: the [rl] extra); MAPPO and IPPO (TorchRL: the [marl] extra). A learner whose extra
 #             is not installed is skipped with a message.
 # One job at a time (parallel=serial, record=off); after each, the compact results of every finished job of OUT go into
-# RESULTS (python -m rovermarl.analysis export). Resumable, also across machines and sessions: a job whose compact
+# RESULTS (python -m rovermarl.analysis export), then the coupling section of DOC. Resumable, also across machines and sessions: a job whose compact
 # files are in RESULTS is skipped, one whose runs are in OUT resumes there from their checkpoints (the RL learners
 # checkpoint every 25 iterations). Kill it at any time and launch it again: it goes on where it stopped.
 # Usage: [AGENT_STEPS=N (default 19200000, the learners table's)] [SEEDS=S (default 5)] [OUT=DIR] [RESULTS=DIR]
 #        [LEVELS="1 2 ..."] [LEARNERS="cces_k1 ..."] [PARALLEL="parallel=ray ray.num_cpus=2" (default parallel=serial)]
+#        [DOC=docs/LEARNERS.md (the report so far: coupling section)]
 #        launchers/coupling.sh [HYDRA_OVERRIDE ...]
 # Only the study's budget (AGENT_STEPS=19200000 SEEDS=5) refreshes results/coupling; any other writes to
 # outputs/results/coupling_g<AGENT_STEPS>_s<S>[,...] (results_dir in _sweep.sh).
@@ -22,6 +23,7 @@ SEEDS="${SEEDS:-5}"
 GENERATIONS="$AGENT_STEPS"                     # what results_dir compares with the study's budget
 OUT="${OUT:-outputs/coupling}"
 LEVELS="${LEVELS:-1 2 3 4 5 6}"
+DOC="${DOC:-docs/LEARNERS.md}"                 # where the report so far goes (a clean run: a copy outside the tree)
 PARALLEL="${PARALLEL:-parallel=serial}"        # how a job's seeds run: one after another, or on Ray
 LEARNERS="${LEARNERS:-cces_k1 cces_adaptive ccea_dpp cma ppo mappo ippo}"
 # shellcheck source=launchers/_sweep.sh
@@ -69,5 +71,6 @@ for c in $LEVELS; do
         fi
         "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
         "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config
+        "$PYTHON" "$STUDIES"/coupling/report.py "$RESULTS" --doc "$DOC" || true   # the report so far
     done
 done
