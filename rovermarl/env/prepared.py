@@ -5,10 +5,12 @@ kernel's lanes and on every core (:func:`score_teams`).
 ``returns``, ``evaluate_many``, ``rollout`` and ``kernel_args`` take the :class:`Prepared` wherever they take ``ic``,
 and then check and convert only the genomes per call. Plain initial conditions still work: they are prepared on
 every call (a few microseconds). ``World.evaluate_many`` lays several teams' episodes side by side in one rollout's
-lanes (:mod:`rovermarl.env.kernel.lanes`) and splits a population of at least :data:`MIN_TEAMS` teams a thread into
-contiguous chunks: the calling thread scores the first, threads of this process's one
-``concurrent.futures.ThreadPoolExecutor`` the others, each in the compiled ``evaluate_many`` (the GIL released).
-Each score is the bits ``World.evaluate`` gives, whichever chunk and pass it is in.
+lanes (:mod:`rovermarl.env.kernel.lanes`) and splits a population into contiguous chunks of at least
+:data:`MIN_TEAMS` teams, two a thread: the calling thread scores the first, the threads of this process's one
+``concurrent.futures.ThreadPoolExecutor`` the next ones, and the caller takes back (``Future.cancel``) from the end
+those no pool thread has started, so that a thread held up on a busy machine delays one chunk at most. Each chunk is
+one call of the compiled ``evaluate_many`` (the GIL released); each score is the bits ``World.evaluate`` gives,
+whichever chunk and pass it is in.
 """
 
 from __future__ import annotations
@@ -85,8 +87,8 @@ def workers_in(workers) -> int | None:
 
 def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: int | None = None):
     """Scores (B,), returns (B*E,) of teams (B*N, P) float64 (:func:`genomes_in`) on ``p``; final_xy (B*E, N, 2) if
-    given. ``workers``: threads at most (None: the CPUs this process may run on, :func:`cpus`; never more), each with
-    a chunk of at least :data:`MIN_TEAMS` teams."""
+    given. ``workers``: threads at most (None: the CPUs this process may run on, :func:`cpus`; never more), with two
+    chunks each of at least :data:`MIN_TEAMS` teams."""
     n, b, e = world.n_rovers, teams.shape[0] // world.n_rovers, p.episodes
     scores, returns, sane = np.empty(b), np.empty(b * e), np.empty(b, dtype=np.bool_)
     final = _NO_FINAL if final_xy is None else final_xy
@@ -95,19 +97,24 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     jit.say_if_cold(run, (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass),
                     "the world's rollout")
     threads = max(1, min(cpus() if workers is None else workers, cpus(), b // MIN_TEAMS))
-    cuts = [b * k // threads for k in range(threads + 1)]          # contiguous chunks [cuts[k], cuts[k+1])
+    parts = min(2 * threads, b // MIN_TEAMS) if threads > 1 else 1
+    cuts = [b * k // parts for k in range(parts + 1)]            # contiguous chunks [cuts[k], cuts[k+1])
 
     def chunk(k: int) -> tuple:
         b0, b1 = cuts[k], cuts[k + 1]
         return (teams[b0 * n:b1 * n], p.xy, p.heading, p.fields, returns[b0 * e:b1 * e], scores[b0:b1], sane[b0:b1],
                 final[b0 * e:b1 * e] if final.shape[0] else final, per_pass)
 
-    others = [_pool(threads - 1).submit(run, *chunk(k)) for k in range(1, threads)]
+    others = [_pool(threads - 1).submit(run, *chunk(k)) for k in range(1, parts)]
     try:
         run(*chunk(0))
+        for k in range(parts - 1, 0, -1):                        # the last chunks first: the pool takes the first
+            if others[k - 1].cancel():                           # no pool thread started it (e.g. a busy core):
+                run(*chunk(k))                                   # this thread scores it
     finally:
         for f in others:
-            f.result()                                   # waits; raises a thread's error
+            if not f.cancel():                                   # started: wait for it (raises its error)
+                f.result()
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
