@@ -6,16 +6,17 @@ kernel's lanes and on every core (:func:`score_teams`).
 and then check and convert only the genomes per call. Plain initial conditions still work: they are prepared on
 every call (a few microseconds). ``World.evaluate_many`` lays several teams' episodes side by side in one rollout's
 lanes (:mod:`rovermarl.env.kernel.lanes`) and splits a population into contiguous chunks of at least
-:data:`MIN_TEAMS` teams, two a thread: the calling thread scores the first, the threads of this process's one
-``concurrent.futures.ThreadPoolExecutor`` the next ones, and the caller takes back (``Future.cancel``) from the end
-those no pool thread has started, so that a thread held up on a busy machine delays one chunk at most. Each chunk is
-one call of the compiled ``evaluate_many`` (the GIL released); each score is the bits ``World.evaluate`` gives,
-whichever chunk and pass it is in.
+:data:`MIN_TEAMS` teams, two a thread, in a ``queue.SimpleQueue``: the calling thread and ``threads - 1`` tasks on
+this process's one ``concurrent.futures.ThreadPoolExecutor`` each take the next chunk until none is left, and the
+caller cancels a task that has not started (``Future.cancel``), so that a thread held up on a busy machine delays
+one chunk at most. Each chunk is one call of the compiled ``evaluate_many`` (the GIL released); each score is the
+bits ``World.evaluate`` gives, whichever chunk and pass it is in.
 """
 
 from __future__ import annotations
 
 import os
+import queue
 import threading
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -105,16 +106,25 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
         return (teams[b0 * n:b1 * n], p.xy, p.heading, p.fields, returns[b0 * e:b1 * e], scores[b0:b1], sane[b0:b1],
                 final[b0 * e:b1 * e] if final.shape[0] else final, per_pass)
 
-    others = [_pool(threads - 1).submit(run, *chunk(k)) for k in range(1, parts)]
+    todo = queue.SimpleQueue()                                   # the chunks not yet taken, in order
+    for k in range(parts):
+        todo.put(k)
+
+    def work() -> None:                                          # one thread's share: chunks until none is left
+        while True:
+            try:
+                k = todo.get_nowait()
+            except queue.Empty:
+                return
+            run(*chunk(k))
+
+    others = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
     try:
-        run(*chunk(0))
-        for k in range(parts - 1, 0, -1):                        # the last chunks first: the pool takes the first
-            if others[k - 1].cancel():                           # no pool thread started it (e.g. a busy core):
-                run(*chunk(k))                                   # this thread scores it
+        work()
     finally:
         for f in others:
-            if not f.cancel():                                   # started: wait for it (raises its error)
-                f.result()
+            if not f.cancel():                                   # started: wait for it (raises its error); one
+                f.result()                                       # that has not (a busy machine) is not waited for
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
@@ -139,10 +149,11 @@ def cpus() -> int:
 
 
 def _pool(threads: int) -> ThreadPoolExecutor:
-    """This process's thread pool, made at first use with at least ``threads`` threads (made as they are needed)."""
+    """This process's thread pool, made at first use with at least ``threads`` threads (made as they are needed;
+    a call runs ``threads`` tasks on it at most)."""
     with _POOL_LOCK:
         size, pool = _POOL.get(os.getpid(), (0, None))
-        if size < threads:
+        if size < threads:                               # e.g. the process's CPUs grew since
             if pool is not None:
                 pool.shutdown(wait=False)                # its threads end once their work is done
             _POOL.clear()
