@@ -158,7 +158,8 @@ class World(Params, Task, Starts, Scenario):
         kernel's precision once: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method takes ``ic``
         (:meth:`evaluate`, :meth:`returns`, :meth:`evaluate_many`, :meth:`rollout`, :meth:`kernel_args`); each call then
         checks and converts only the genomes. A snapshot: later changes to ic's arrays are not seen. Plain ``ic`` is
-        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``)."""
+        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``). No episode, or nan or inf in
+        xy or heading, is refused in one line (ValueError)."""
         if type(ic) is Prepared:
             return ic if ic.world is self else self.prepare(ic.ic)
         xy0, h0, layout = (a.copy() for a in self._batch(*ic))
@@ -186,7 +187,8 @@ class World(Params, Task, Starts, Scenario):
     def returns(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> np.ndarray:
         """Per-episode team returns (E,) of a team genomes (N, P) from ic (or :meth:`prepare`'s).
 
-        If given, ``final_xy`` (E, N, 2) receives the rovers' final positions (at no extra cost).
+        If given, ``final_xy`` (E, N, 2), a writeable C-ordered float64 array, receives the rovers' final positions
+        (at no extra cost).
         """
         return self._one(genomes, ic, final_xy)[1]
 
@@ -200,9 +202,9 @@ class World(Params, Task, Starts, Scenario):
         """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic`` (or :meth:`prepare`'s), each the
         float :meth:`evaluate` gives, bit for bit (for an optimiser's population; a homogeneous team:
         :meth:`homogeneous`). Several teams share each pass of the compiled rollout (their episodes side by side in
-        its lanes), and a population of at least 2 teams per worker is split over ``workers`` threads (None: every
-        CPU this process may use; 1: this thread only). ``final_xy`` (B, E, N, 2), if given, receives each team's
-        final positions."""
+        its lanes), and a population is split over up to ``workers`` threads (None: every CPU this process may use,
+        and never more; 1: this thread only) in chunks of at least 8 teams (``prepared.score_teams``). ``final_xy``
+        (B, E, N, 2), if given, a writeable C-ordered float64 array, receives each team's final positions."""
         teams = np.asarray(teams)
         if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
             raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
