@@ -50,7 +50,8 @@ for _ in range(rounds):
         for _ in range(m):
             f()
         best[k] = min(best.get(k, 1e9), (time.process_time() - t) / m / per * 1e6)
-print(json.dumps(best))
+import rovermarl
+print(json.dumps({**best, "package": rovermarl.__file__}))
 """
 
 
@@ -78,8 +79,11 @@ def copies() -> dict[str, Path | None]:
 def run(path: Path | None, core: int, rounds: int, n: int) -> dict:
     env = dict(os.environ, PYTHONPATH=str(path)) if path else dict(os.environ)
     proc = subprocess.run([sys.executable, "-c", CHILD, str(core), str(rounds), str(n)], env=env, check=True,
-                          capture_output=True, text=True)
-    return json.loads(proc.stdout.splitlines()[-1])
+                          capture_output=True, text=True, cwd=path or ROOT)      # cwd: first on sys.path
+    out = json.loads(proc.stdout.splitlines()[-1])
+    if not out.pop("package").startswith(str(path or ROOT)):
+        sys.exit(f"benchmarks/intrinsics.py: the child did not import rovermarl from {path or ROOT}")
+    return out
 
 
 def main() -> None:

@@ -12,8 +12,9 @@ plain loops (``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of e
 16 float32); LLVM splits them into the target's registers (one 512-bit register or two 256-bit ones per unit).
 :func:`output_tile` does the same for the output layer's 2 units, whose inputs are the hidden units.
 
-Worth about 1.8x a call: ``benchmarks/intrinsics.py`` (``plain_tiles``: ``stages._mlp``'s plain loops for every
-tile), float64 duo ``World.evaluate`` 86-92 against 48-50 us, alternated processes on a loaded machine (2026-12-06).
+Worth 1.86x a call: ``python benchmarks/intrinsics.py --pairs 3`` (``plain_tiles``: ``stages._mlp``'s plain loops
+for every tile), float64 duo ``World.evaluate`` 85.8-90.0 against 46.8-48.5 us, alternated processes on one pinned
+core of a loaded machine (load average 8.7, 2026-12-06; ``docs/PERFORMANCE.md``).
 """
 
 from __future__ import annotations
