@@ -191,8 +191,9 @@ def test_workers_are_capped_at_the_cpus_of_this_process_and_small_populations_st
     for _ in range(20):
         assert world.evaluate_many(teams, p, workers=1000).tolist() == want
         assert sorted(chunks) == [10, 10, 11, 11, 11, 11]        # 2 contiguous chunks a thread
+        assert len(threads) <= 3                               # the caller and 2 pool threads at most, each call
         chunks.clear()
-    assert len(threads) <= 3                                   # the caller and 2 pool threads at most
+        threads.clear()
     assert world.evaluate_many(teams[:2 * prepared.MIN_TEAMS - 1], p, workers=1000).tolist() == \
         want[:2 * prepared.MIN_TEAMS - 1]
     assert chunks == [2 * prepared.MIN_TEAMS - 1]               # too small to split
