@@ -13,8 +13,10 @@ order, so that machine noise hits them alike; each ratio is the median over repe
 times (below 1: faster than the rollout). Single-core times are process CPU time; the two-core ones wall time
 (threads), also for their one-core reference, so ``two_cores_over_one`` is a rate ratio in wall time;
 ``two_processes_over_one`` is the same ratio for two processes, one a core, with no thread pool or GIL between
-them: the most two cores give this work here, against which the threads' figure reads. The load average is printed:
-on a shared machine the two-core figures are what the other processes leave.
+them: the most two cores give this work here, against which the threads' figure reads. ``two_cores_over_one_busy``
+and ``_niced_busy``: the same ratio while another process keeps a core busy (``while True: pass``; then under
+``nice -n 10``): more threads must never be slower than one (issue 52's targets: 1.6x idle, never below 0.95x
+busy). The load average is printed: on a shared machine the two-core figures are what the other processes leave.
 
 Teams (``setup=duo``, its 16 initial conditions of run 0): the first of 256 random teams (genomes uniform in
 [-2, 2]) that scores 0 (``zero``; most random and early teams do) and the first that scores above 0 (``scoring``);
@@ -27,8 +29,10 @@ batch of teams can share.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
+import subprocess
 import sys
 import time
 
@@ -149,8 +153,24 @@ def one_core(dtype: str, a, old) -> dict:
     return out
 
 
+BUSY = {"busy": [], "niced_busy": ["nice", "-n", "10"]}    # another process keeping a core busy, and the same niced
+
+
+@contextlib.contextmanager
+def busy(nice: list[str]):
+    """A process spinning in Python on one core (under ``nice`` if given) while the block runs."""
+    proc = subprocess.Popen([*nice, sys.executable, "-c", "while True: pass"])
+    try:
+        time.sleep(0.5)
+        yield
+    finally:
+        proc.kill()
+        proc.wait()
+
+
 def two_cores(dtype: str, a) -> dict:
-    """B = 64 on one thread and on two (wall time, both on the two cores this process is given)."""
+    """B = 64 on one thread and on two (wall time, both on the two cores this process is given): as the machine is,
+    then with another process busy on a core (:data:`BUSY`: not niced, niced)."""
     world = make_world(a.setup, dtype=dtype)
     p = world.prepare(world.run_ic(0))
     teams = np.random.default_rng(0).uniform(-2, 2, (64, world.n_rovers, world.n_params))
@@ -158,10 +178,15 @@ def two_cores(dtype: str, a) -> dict:
            "two": lambda: world.evaluate_many(teams, p, workers=2)}
     n = max(2, a.evals // 64)
     t = alternate(fns, {"one": n, "two": n}, a.repeats, a.chunks, clock=time.perf_counter)
-    return {"many_64_us_per_team": {"one_thread": round(float(np.min(t["one"])) / 64 * 1e6, 2),
-                                    "two_threads": round(float(np.min(t["two"])) / 64 * 1e6, 2)},
-            "two_cores_over_one": round(float(np.median(t["one"] / t["two"])), 4),
-            "two_processes_over_one": two_processes(world, p, teams, n, a.repeats)}
+    out = {"many_64_us_per_team": {"one_thread": round(float(np.min(t["one"])) / 64 * 1e6, 2),
+                                   "two_threads": round(float(np.min(t["two"])) / 64 * 1e6, 2)},
+           "two_cores_over_one": round(float(np.median(t["one"] / t["two"])), 4),
+           "two_processes_over_one": two_processes(world, p, teams, n, a.repeats)}
+    for name, nice in BUSY.items():
+        with busy(nice):
+            t = alternate(fns, {"one": n, "two": n}, a.repeats, a.chunks, clock=time.perf_counter)
+        out[f"two_cores_over_one_{name}"] = round(float(np.median(t["one"] / t["two"])), 4)
+    return out
 
 
 def two_processes(world, p, teams, n: int, repeats: int) -> float:

@@ -4,7 +4,6 @@ import math
 
 from numba import njit
 
-from rovermarl.env.kernel.borrow import borrow, keep
 from rovermarl.env.kernel.math import FAST, atan2, tanh
 
 
@@ -81,17 +80,3 @@ def act_plain(genomes, obs, hidden, out):
                 z1 = z1 + t * g[o_w2 + 2 * u + 1]
             out[e, i, 0] = tanh(z0)
             out[e, i, 1] = tanh(z1)
-
-
-@njit(cache=True)
-def borrowed_rows(owner, extra):
-    """Through arrays borrowed from owner (R, C): row 1 doubled in place, then the sum of the borrowed row 1 and of
-    a slice of the borrowed whole; ``extra`` (not an array) comes back as it went in."""
-    b = borrow(owner)
-    row = b[1]
-    for c in range(row.shape[0]):
-        row[c] *= 2.0
-    total = row.sum() + b[:, 0].sum()
-    same = borrow(extra)
-    keep(owner)
-    return total, same

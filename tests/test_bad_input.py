@@ -222,6 +222,7 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["checkpoint.every=0"], "checkpoint.every=0: must be an integer >= 1"),
     (["record.every=0"], "record.every=0: must be an integer >= 1"),
     (["parallel.workers=0"], "parallel.workers=0: must be an integer >= 1"),
+    (["parallel.ic_shards=17"], "parallel.ic_shards=17: must be an integer in 1..16"),
     (["ray.num_cpus=0"], "ray.num_cpus=0: must be an integer >= 1"),
     (["setup.value=[-1,1,1,1,1,1,1,1,1,1]"], "setup.value[0]=-1: must be a finite number >= 0"),
     # unknown group options

@@ -30,7 +30,9 @@ def test_evaluate_many_is_a_loop_of_evaluate_bit_for_bit(name, dtype, monkeypatc
     if name == "paper":
         assert 0 < sum(s > 0 for s in one) < 21                     # scoring and zero-scoring teams both
     p = world.prepare(ic)
-    for lanes, workers in ((64, 1), (64, 2), (64, 3), (16, 1), (e * 21, 1), (e * 5, 2)):
+    monkeypatch.setattr(prepared, "MIN_TEAMS", 1)                    # chunks of any size
+    monkeypatch.setattr(prepared, "cpus", lambda: 4)                 # 3 threads even on a 2-CPU machine
+    for lanes, workers in ((64, 1), (64, 2), (64, 3), (16, 1), (e * 21, 1), (e * 5, 2), (e * 5, 4)):
         monkeypatch.setattr(prepared, "PASS_LANES", lanes)           # 1, 4, 5 or all 21 teams in one pass
         final = np.full_like(final_one, np.nan)
         many = world.evaluate_many(teams, p, final, workers=workers)
@@ -84,9 +86,9 @@ def test_a_team_that_is_not_finite_is_warned_about_by_each_call(dtype):
         world.evaluate_many(teams[:6], p, workers=2)                 # finite teams: no warning
 
 
-def test_threads_share_passes_and_callers_share_the_relay():
-    """Two callers at once, each asking for 2 threads, with one relay between them (a caller that finds it busy runs
-    its population alone): every score is the bits of a loop of evaluate, whichever thread took each pass."""
+def test_two_callers_at_once_share_the_pool():
+    """Two callers at once, each asking for 2 threads, with one pool between them: every score is the bits of a loop
+    of evaluate, whichever thread scored each chunk."""
     import threading
 
     world = make_world("duo", dtype="float32")
@@ -106,10 +108,10 @@ def test_threads_share_passes_and_callers_share_the_relay():
     assert got == [[want[0]] * 5, [want[1]] * 5]
 
 
-def test_helpers_follow_the_caller_from_world_to_world_and_call_to_call():
-    """The helpers wait for the next population in compiled code, bound to one world's initial conditions: calls that
-    alternate worlds, dtypes and initial conditions, and many small back-to-back calls, all get the bits of a loop of
-    evaluate."""
+def test_threads_follow_the_caller_from_world_to_world_and_call_to_call(monkeypatch):
+    """Calls that alternate worlds, dtypes and initial conditions, and many small back-to-back calls, split over
+    threads, all get the bits of a loop of evaluate."""
+    monkeypatch.setattr(prepared, "MIN_TEAMS", 2)
     worlds = [make_world("duo"), make_world("duo", dtype="float32"), _world("obstacles")]
     preps = [(w, w.prepare(w.run_ic(k))) for w in worlds for k in (0, 1)]
     rng = np.random.default_rng(5)
@@ -121,44 +123,125 @@ def test_helpers_follow_the_caller_from_world_to_world_and_call_to_call():
         for w, p, teams, want in cases:
             assert w.evaluate_many(teams, p, workers=2).tolist() == want
     w, p, teams, want = cases[0]
-    for _ in range(300):                                       # 2 passes of 4 teams: the helper races the caller
+    for _ in range(300):                                       # 2 chunks of 2 teams, back to back
         assert w.evaluate_many(teams[:4], p, workers=2).tolist() == want[:4]
 
 
-def test_an_error_in_a_helper_thread_is_raised_by_the_call_and_the_next_call_works():
-    """A helper that fails inside a job is not waited for forever: the call raises its error once the other threads
-    are done, and the next call gets a new relay."""
+def test_an_error_in_a_pool_thread_is_raised_by_the_call_and_the_next_call_works(monkeypatch):
+    """A chunk that fails in a pool thread: the call raises its error once the other chunks are done (the caller
+    took them, each scored right), and the next call works."""
+    import threading
     import time
-    from types import SimpleNamespace
-
-    from rovermarl.env import relay
-    from rovermarl.env.kernel import fused, mailbox
-    from rovermarl.jit import njit
-
-    @njit(nogil=True)
-    def failing_serve(xy0, heading0, fields, box, counters, epoch, idle):
-        if epoch >= 0:                                      # (the relay calls it with -1 first, to compile it)
-            for _ in range(1000 * idle):                    # bounded: a helper never spins on after the test
-                if mailbox.open_job(box, -1, epoch) >= 0:
-                    mailbox.add(box, mailbox.INSIDE, 1)
-                    raise ValueError("a hook failed in a helper thread")
-                mailbox.pause()
-
-    def caller_after_the_helper_joined(*args):             # the caller's passes start once the helper is inside
-        deadline = time.monotonic() + 30
-        while r.box[mailbox.INSIDE] == 0 and time.monotonic() < deadline:
-            time.sleep(1e-4)
-        fused.evaluate_many(*args)
 
     world = make_world("duo")
     p = world.prepare(world.run_ic(0))
-    teams = np.random.default_rng(2).uniform(-2, 2, (64, world.n_rovers, world.n_params))
-    flat = teams.reshape(64 * world.n_rovers, world.n_params)
-    out = np.empty(64), np.empty(64 * p.episodes), np.empty(64, dtype=np.bool_)
-    r = relay.relay(1)
-    stand_in = SimpleNamespace(serve=failing_serve, evaluate_many=caller_after_the_helper_joined)
-    with pytest.raises(ValueError, match="a hook failed in a helper thread"):
-        r.run(stand_in, p, (flat, out[1], out[0], out[2], prepared._NO_FINAL, 1), 2)
-    assert out[0].tolist() == [world.evaluate(t, p) for t in teams]     # the caller scored every team itself
-    assert relay.relay(1) is not r
-    assert world.evaluate_many(teams, p, workers=2).tolist() == out[0].tolist()
+    teams = np.random.default_rng(2).uniform(-2, 2, (32, world.n_rovers, world.n_params))
+    want = [world.evaluate(t, p) for t in teams]
+    real = world.compiled.evaluate_many
+    seen = []
+
+    def failing(*args):
+        caller = threading.current_thread() is threading.main_thread()
+        seen.append(caller)
+        if not caller:
+            raise ValueError("a hook failed in a pool thread")
+        deadline = time.monotonic() + 30
+        while False not in seen and time.monotonic() < deadline:  # a pool thread has taken a chunk first
+            time.sleep(1e-4)
+        real(*args)
+        seen.append(args[5].tolist())                          # the caller's chunks' scores
+
+    failing.overloads = real.overloads                         # what jit.say_if_cold reads
+    monkeypatch.setattr(world.compiled, "evaluate_many", failing)
+    with pytest.raises(ValueError, match="a hook failed in a pool thread"):
+        world.evaluate_many(teams, p, workers=2)
+    caller = [x for x in seen if isinstance(x, list)]
+    slices = [want[k * 8:(k + 1) * 8] for k in range(4)]           # 4 chunks of 8 teams
+    assert seen.count(False) == 1 and len(caller) == 3           # the pool's task ended at its error: the caller
+    assert all(caller.count(x) == 1 and x in slices for x in caller)    # took the 3 others, each scored right
+    monkeypatch.undo()
+    assert world.evaluate_many(teams, p, workers=2).tolist() == want
+
+
+def test_workers_are_capped_at_the_cpus_of_this_process_and_small_populations_stay_on_one_thread(monkeypatch):
+    """workers=1000 starts no more threads than the CPUs this process may use (os.sched_getaffinity); a chunk is at
+    least MIN_TEAMS teams. Counted by the chunks the compiled call is given, and the pool's threads."""
+    import threading
+
+    world = make_world("duo")
+    p = world.prepare(world.run_ic(0))
+    teams = np.random.default_rng(4).uniform(-2, 2, (64, world.n_rovers, world.n_params))
+    want = world.evaluate_many(teams, p, workers=1).tolist()
+    real, chunks, threads = world.compiled.evaluate_many, [], set()
+
+    def counted(*args):
+        chunks.append(args[5].shape[0])
+        threads.add(threading.get_ident())
+        real(*args)
+
+    counted.overloads = real.overloads                         # what jit.say_if_cold reads
+    monkeypatch.setattr(world.compiled, "evaluate_many", counted)
+    before = threading.active_count()
+    assert world.evaluate_many(teams, p, workers=1000).tolist() == want           # this machine's CPUs
+    assert len(chunks) == min(2 * prepared.cpus(), 64 // prepared.MIN_TEAMS) and sum(chunks) == 64
+    assert len(threads) <= prepared.cpus() and threading.active_count() <= before + prepared.cpus() - 1
+    chunks.clear()
+    threads.clear()
+    monkeypatch.setattr(prepared, "cpus", lambda: 3)
+    for _ in range(20):
+        assert world.evaluate_many(teams, p, workers=1000).tolist() == want
+        assert sorted(chunks) == [10, 10, 11, 11, 11, 11]        # 2 contiguous chunks a thread
+        assert len(threads) <= 3                               # the caller and 2 pool threads at most, each call
+        chunks.clear()
+        threads.clear()
+    assert world.evaluate_many(teams[:2 * prepared.MIN_TEAMS - 1], p, workers=1000).tolist() == \
+        want[:2 * prepared.MIN_TEAMS - 1]
+    assert chunks == [2 * prepared.MIN_TEAMS - 1]               # too small to split
+    for bad in (0, -1, 1.5, "2", True):
+        with pytest.raises(ValueError, match=r"^workers must be None or an integer >= 1, got"):
+            world.evaluate_many(teams, p, workers=bad)
+
+
+@pytest.mark.parametrize("call", ["evaluate", "returns", "evaluate_many"])
+def test_final_xy_is_checked_alike_and_never_truncated_or_recompiled(call):
+    """final_xy of another dtype (int64, float32), strided, read-only or of another shape is refused in one line by
+    evaluate, returns and evaluate_many alike (no silent truncation into int64, no compile for another layout)."""
+    world = make_world("duo")
+    p = world.prepare(world.run_ic(0))
+    team = np.random.default_rng(6).uniform(-2, 2, (world.n_rovers, world.n_params))
+    shape = p.xy.shape if call != "evaluate_many" else (1, *p.xy.shape)
+
+    def run(final):
+        if call == "evaluate_many":
+            return world.evaluate_many(team[None], p, final)
+        return getattr(world, call)(team, p, final)
+
+    readonly = np.zeros(shape)
+    readonly.flags.writeable = False
+    for bad in (np.zeros(shape, np.int64), np.zeros(shape, np.float32), np.zeros((*shape[:-1], 4))[..., :2],
+                readonly, np.zeros(shape[1:] if call == "evaluate_many" else shape[:-1]), [[0.0, 0.0]]):
+        with pytest.raises(ValueError, match=r"^final_xy must be a writeable C-ordered float64 array of shape") as e:
+            run(bad)
+        assert "\n" not in str(e.value)
+    good = np.zeros(shape)
+    run(good)
+    assert good.tobytes() == world.rollout(team, p).xy[:, -1].tobytes()
+
+
+def test_initial_conditions_that_are_not_finite_or_hold_no_episode_are_refused_in_one_line():
+    """NaN or inf in xy or heading (which would score 0.0 with no word), and zero episodes (a NaN score), are
+    refused by prepare and so by every call that takes initial conditions."""
+    world = make_world("duo")
+    ic = world.run_ic(0)
+    team = np.zeros((world.n_rovers, world.n_params))
+    for k, value in ((0, np.nan), (1, np.inf), (0, -np.inf)):
+        bad = (ic.xy.copy(), ic.heading.copy())
+        bad[k][3, 1, ...] = value
+        for call in (world.prepare, lambda b: world.evaluate(team, b), lambda b: world.evaluate_many(team[None], b)):
+            with pytest.raises(ValueError, match=r"^initial conditions must be finite numbers: episode 3's xy or "
+                                                 r"heading holds nan or inf$"):
+                call(bad)
+    for call in (lambda: world.prepare((ic.xy[:0], ic.heading[:0])), lambda: world.evaluate(team, (ic.xy[:0],
+                                                                                                 ic.heading[:0]))):
+        with pytest.raises(ValueError, match=r"^initial conditions must hold E >= 1 episodes"):
+            call()

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, borrowed_rows, tanh_array, tanh_finite_array
+from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_array, tanh_finite_array
 
 from rovermarl import make_world
 from rovermarl.env import kernel
@@ -375,12 +375,3 @@ def test_float32_rollouts_are_close_to_float64():
         assert 0 < np.abs(r32.xy - r64.xy).max() < 1e-3, t                     # close, not equal
         assert np.array_equal(r32.returns, w32.returns(genomes, ic))
 
-
-def test_a_borrowed_array_reads_and_writes_its_owners_memory():
-    """kernel.borrow: an array without numba's memory record (the step loop's) is the owner's memory, and
-    anything that is not an array passes through."""
-    owner = np.arange(12.0).reshape(3, 4)
-    total, same = borrowed_rows(owner, (1, 2.5))
-    assert owner[1].tolist() == [8.0, 10.0, 12.0, 14.0]          # written through the borrowed row
-    assert total == 44.0 + (0.0 + 8.0 + 8.0)                      # read through it, and through a borrowed slice
-    assert same == (1, 2.5)

@@ -5,27 +5,34 @@ kernel's lanes and on every core (:func:`score_teams`).
 ``returns``, ``evaluate_many``, ``rollout`` and ``kernel_args`` take the :class:`Prepared` wherever they take ``ic``,
 and then check and convert only the genomes per call. Plain initial conditions still work: they are prepared on
 every call (a few microseconds). ``World.evaluate_many`` lays several teams' episodes side by side in one rollout's
-lanes (:mod:`rovermarl.env.kernel.lanes`) and, for a population of at least two teams per core, shares its passes
-with helper threads that wait in compiled code (:mod:`rovermarl.env.relay`); each score is the bits
-``World.evaluate`` gives.
+lanes (:mod:`rovermarl.env.kernel.lanes`) and splits a population into contiguous chunks of at least
+:data:`MIN_TEAMS` teams, two a thread, in a ``queue.SimpleQueue``: the calling thread and ``threads - 1`` tasks on
+this process's one ``concurrent.futures.ThreadPoolExecutor`` each take the next chunk until none is left, and the
+caller cancels a task that has not started (``Future.cancel``), so that a thread held up on a busy machine delays
+one chunk at most. Each chunk is one call of the compiled ``evaluate_many`` (the GIL released); each score is the
+bits ``World.evaluate`` gives, whichever chunk and pass it is in.
 """
 
 from __future__ import annotations
 
 import os
+import queue
+import threading
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
 import numpy as np
 
 from rovermarl import jit
-from rovermarl.env.relay import relay
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
-SHARED_LANES = 64       # the same when threads share the passes: smaller passes end together (4 teams of 16)
+MIN_TEAMS = 8           # a thread's chunk at least this many teams: a smaller one costs more to hand over than it saves
 _NO_FINAL = np.empty((0, 1, 2))
-_COUNTERS = np.zeros(1, dtype=np.int64)   # a stand-in of the pass counter's type, for jit.say_if_cold
 _F64 = np.dtype(np.float64)
+_POOL: dict[int, tuple[int, ThreadPoolExecutor]] = {}   # pid: (threads, this process's pool); a forked child
+                                                         # makes its own
+_POOL_LOCK = threading.Lock()
 
 
 class Prepared(NamedTuple):
@@ -60,22 +67,64 @@ def genomes_in(genomes, shape: tuple[int, ...], what: str) -> np.ndarray:
     return genomes if genomes.flags.writeable else genomes.copy()
 
 
+def final_in(final_xy, shape: tuple[int, ...]) -> np.ndarray:
+    """``final_xy`` as the kernel writes into it: a writeable C-ordered float64 array of ``shape``, else a one-line
+    ValueError (a copy in another dtype would not reach the caller; numba would compile again for another layout)."""
+    if isinstance(final_xy, np.ndarray) and final_xy.dtype is _F64 and final_xy.shape == shape \
+            and final_xy.flags.c_contiguous and final_xy.flags.writeable:
+        return final_xy
+    got = (f"{'read-only ' if not final_xy.flags.writeable else ''}"
+           f"{'' if final_xy.flags.c_contiguous else 'strided '}{final_xy.dtype} {final_xy.shape}"
+           if isinstance(final_xy, np.ndarray) else type(final_xy).__name__)
+    raise ValueError(f"final_xy must be a writeable C-ordered float64 array of shape {shape}, got {got}")
+
+
+def workers_in(workers) -> int | None:
+    """``workers`` of ``World.evaluate_many``: None or an integer >= 1, else a one-line ValueError."""
+    if workers is None or (isinstance(workers, (int, np.integer)) and not isinstance(workers, bool) and workers >= 1):
+        return workers
+    raise ValueError(f"workers must be None or an integer >= 1, got {workers!r}")
+
+
 def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: int | None = None):
     """Scores (B,), returns (B*E,) of teams (B*N, P) float64 (:func:`genomes_in`) on ``p``; final_xy (B*E, N, 2) if
-    given. ``workers``: threads (None: the CPUs this process may run on); used only for at least 2 teams each."""
-    b, e = teams.shape[0] // world.n_rovers, p.episodes
+    given. ``workers``: threads at most (None: the CPUs this process may run on, :func:`cpus`; never more), with two
+    chunks each of at least :data:`MIN_TEAMS` teams."""
+    n, b, e = world.n_rovers, teams.shape[0] // world.n_rovers, p.episodes
     scores, returns, sane = np.empty(b), np.empty(b * e), np.empty(b, dtype=np.bool_)
     final = _NO_FINAL if final_xy is None else final_xy
-    threads = min(_cores() if workers is None else workers, b // 2) if b >= 4 else 1
-    per_pass = max(1, (PASS_LANES if threads <= 1 else min(SHARED_LANES, PASS_LANES)) // e)
-    compiled = world.compiled
-    jit.say_if_cold(compiled.evaluate_many, (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass,
-                                             _COUNTERS), "the world's rollout")
-    job = (teams, returns, scores, sane, final, per_pass)
-    shared = threads > 1 and relay(threads - 1).run(compiled, p, job, threads)
-    if not shared:                                       # one thread, or another thread is using the relay
-        compiled.evaluate_many(teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass,
-                               np.zeros(1, dtype=np.int64))
+    per_pass = max(1, PASS_LANES // e)
+    run = world.compiled.evaluate_many
+    jit.say_if_cold(run, (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass),
+                    "the world's rollout")
+    threads = max(1, min(cpus() if workers is None else workers, cpus(), b // MIN_TEAMS))
+    parts = min(2 * threads, b // MIN_TEAMS) if threads > 1 else 1
+    cuts = [b * k // parts for k in range(parts + 1)]            # contiguous chunks [cuts[k], cuts[k+1])
+
+    def chunk(k: int) -> tuple:
+        b0, b1 = cuts[k], cuts[k + 1]
+        return (teams[b0 * n:b1 * n], p.xy, p.heading, p.fields, returns[b0 * e:b1 * e], scores[b0:b1], sane[b0:b1],
+                final[b0 * e:b1 * e] if final.shape[0] else final, per_pass)
+
+    todo = queue.SimpleQueue()                                   # the chunks not yet taken, in order
+    for k in range(parts):
+        todo.put(k)
+
+    def work() -> None:                                          # one thread's share: chunks until none is left
+        while True:
+            try:
+                k = todo.get_nowait()
+            except queue.Empty:
+                return
+            run(*chunk(k))
+
+    others = [_pool(threads - 1).submit(work) for _ in range(threads - 1)]
+    try:
+        work()
+    finally:
+        for f in others:
+            if not f.cancel():                                   # started: wait for it (raises its error); one
+                f.result()                                       # that has not (a busy machine) is not waited for
     if not sane.all():
         warn_insane(sane, returns.reshape(b, e))
     return scores, returns
@@ -91,9 +140,22 @@ def warn_insane(sane: np.ndarray, returns: np.ndarray) -> None:
                       "non-finite actions, which score 0", RuntimeWarning, stacklevel=4)
 
 
-def _cores() -> int:
+def cpus() -> int:
     """The CPUs this process may run on (its affinity, e.g. under taskset)."""
     try:
         return len(os.sched_getaffinity(0))
     except AttributeError:                               # not on Linux
         return os.cpu_count() or 1
+
+
+def _pool(threads: int) -> ThreadPoolExecutor:
+    """This process's thread pool, made at first use with at least ``threads`` threads (made as they are needed;
+    a call runs ``threads`` tasks on it at most)."""
+    with _POOL_LOCK:
+        size, pool = _POOL.get(os.getpid(), (0, None))
+        if size < threads:                               # e.g. the process's CPUs grew since
+            if pool is not None:
+                pool.shutdown(wait=False)                # its threads end once their work is done
+            _POOL.clear()
+            _POOL[os.getpid()] = threads, (pool := ThreadPoolExecutor(threads, thread_name_prefix="rovermarl"))
+        return pool

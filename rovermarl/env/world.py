@@ -38,7 +38,7 @@ from rovermarl.env.kernel import record
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.env.params import DTYPES, Params, keywords
-from rovermarl.env.prepared import Prepared, genomes_in, score_teams, warn_insane
+from rovermarl.env.prepared import Prepared, final_in, genomes_in, score_teams, warn_insane, workers_in
 from rovermarl.env.scenario import Scenario
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
@@ -158,10 +158,17 @@ class World(Params, Task, Starts, Scenario):
         kernel's precision once: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method takes ``ic``
         (:meth:`evaluate`, :meth:`returns`, :meth:`evaluate_many`, :meth:`rollout`, :meth:`kernel_args`); each call then
         checks and converts only the genomes. A snapshot: later changes to ic's arrays are not seen. Plain ``ic`` is
-        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``)."""
+        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``). No episode, or nan or inf in
+        xy or heading, is refused in one line (ValueError)."""
         if type(ic) is Prepared:
             return ic if ic.world is self else self.prepare(ic.ic)
         xy0, h0, layout = (a.copy() for a in self._batch(*ic))
+        if h0.ndim != 2 or h0.shape[0] == 0:
+            raise ValueError(f"initial conditions must hold E >= 1 episodes, xy (E, {self.n_rovers}, 2); got "
+                             f"{xy0.shape}")
+        if not (np.isfinite(xy0).all() and np.isfinite(h0).all()):
+            e = int(np.flatnonzero(~(np.isfinite(xy0).all(axis=(1, 2)) & np.isfinite(h0).all(axis=1)))[0])
+            raise ValueError(f"initial conditions must be finite numbers: episode {e}'s xy or heading holds nan or inf")
         f, k = self._float, self.kernel_for(layout)
         return Prepared(InitialConditions(xy0, h0, layout), xy0.astype(f), h0.astype(f), k, tuple(k), self)
 
@@ -180,7 +187,8 @@ class World(Params, Task, Starts, Scenario):
     def returns(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> np.ndarray:
         """Per-episode team returns (E,) of a team genomes (N, P) from ic (or :meth:`prepare`'s).
 
-        If given, ``final_xy`` (E, N, 2) receives the rovers' final positions (at no extra cost).
+        If given, ``final_xy`` (E, N, 2), a writeable C-ordered float64 array, receives the rovers' final positions
+        (at no extra cost).
         """
         return self._one(genomes, ic, final_xy)[1]
 
@@ -194,19 +202,17 @@ class World(Params, Task, Starts, Scenario):
         """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic`` (or :meth:`prepare`'s), each the
         float :meth:`evaluate` gives, bit for bit (for an optimiser's population; a homogeneous team:
         :meth:`homogeneous`). Several teams share each pass of the compiled rollout (their episodes side by side in
-        its lanes), and a population of at least 2 teams per worker is split over ``workers`` threads (None: every
-        CPU this process may use; 1: this thread only). ``final_xy`` (B, E, N, 2), if given, receives each team's
-        final positions."""
+        its lanes), and a population is split over up to ``workers`` threads (None: every CPU this process may use,
+        and never more; 1: this thread only) in chunks of at least 8 teams (``prepared.score_teams``). ``final_xy``
+        (B, E, N, 2), if given, a writeable C-ordered float64 array, receives each team's final positions."""
         teams = np.asarray(teams)
         if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
             raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
-        p = self._prepared(ic)
+        p, workers = self._prepared(ic), workers_in(workers)
         b = teams.shape[0]
         flat = genomes_in(teams, teams.shape, "teams").reshape(b * self.n_rovers, self.n_params)
         if final_xy is not None:
-            if final_xy.shape != (b, *p.xy.shape) or final_xy.dtype != np.float64 or not final_xy.flags.c_contiguous:
-                raise ValueError(f"final_xy must be a C-ordered float64 array of shape {(b, *p.xy.shape)}")
-            final_xy = final_xy.reshape(b * p.episodes, self.n_rovers, 2)
+            final_xy = final_in(final_xy, (b, *p.xy.shape)).reshape(b * p.episodes, self.n_rovers, 2)
         return score_teams(self, flat, p, final_xy, workers)[0]
 
     def homogeneous(self, genome: np.ndarray) -> np.ndarray:
@@ -232,10 +238,7 @@ class World(Params, Task, Starts, Scenario):
         call; the warning only for a team not sane)."""
         p = ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
         g = genomes_in(genomes, self._team_shape, "genomes")
-        if final_xy is None:
-            final_xy = _NO_FINAL
-        elif final_xy.shape != p.xy.shape:
-            raise ValueError(f"final_xy must have shape {p.xy.shape}, got {final_xy.shape}")
+        final_xy = _NO_FINAL if final_xy is None else final_in(final_xy, p.xy.shape)
         returns = np.empty(p.heading.shape[0])
         run = self.compiled.evaluate
         if not run.overloads:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from rovermarl.env.kernel.borrow import borrow, keep
 from rovermarl.env.kernel.hooks import (  # hooks
     begin,
     finite,
@@ -23,8 +22,7 @@ from rovermarl.env.kernel.hooks import (  # hooks
     stepwise,
     tick,
 )
-from rovermarl.env.kernel.lanes import claim, in_precision, sane_teams, tile_flat, tile_rows
-from rovermarl.env.kernel.mailbox import AWAKE, EPOCH, INSIDE, PER_PASS, add, job_arrays, load, open_job, pause, seated
+from rovermarl.env.kernel.lanes import in_precision, sane_teams, tile_flat, tile_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import score
@@ -62,20 +60,16 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
     per, n = heading0.shape
     teams = genomes.shape[0] // n                      # B teams side by side: n_ep = B*E lanes of episodes
     n_ep = teams * per
-    owned_layout = tile_rows(layout, teams) if teams > 1 and layout.shape[0] == per else layout   # one row per lane
-    w = KernelWorld(borrow(poi_xy), borrow(poi_type), borrow(coupling), borrow(value), steps, hidden, obs_dim,
-                    sensor_range, obs_radius, v_max, w_max, speed_mode, reward_mode, borrow(owned_layout),
-                    borrow(extra), borrow(rows), borrow(state_dims))
+    layout = tile_rows(layout, teams) if teams > 1 and layout.shape[0] == per else layout   # one row per lane
+    w = KernelWorld(poi_xy, poi_type, coupling, value, steps, hidden, obs_dim, sensor_range, obs_radius, v_max, w_max,
+                    speed_mode, reward_mode, layout, extra, rows, state_dims)
     ne = n * n_ep
     record = traj_xy.shape[0] == n_ep
     d, hidden = w.obs_dim, w.hidden
-    # The step loop's arrays are borrowed (kernel.borrow: no atomic reference counts); their owners are kept below.
-    owned = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
-    state = borrow(owned)
+    state = np.empty((7, ne), dtype=xy0.dtype)         # the world's state in the kernel's precision (env.dtype)
     x, y, heading, sin_h, cos_h, a0, a1 = state[0], state[1], state[2], state[3], state[4], state[5], state[6]
-    owned_obs, owned_rows = np.empty(d * ne, dtype=xy0.dtype), np.empty(d, dtype=np.int64)
-    owned_hid = np.empty((hidden + 2) * per, dtype=xy0.dtype)
-    obs, hid, scratch, cand, g = borrow(owned_obs), borrow(owned_hid), borrow(owned_rows), w.rows, borrow(genomes)
+    obs, scratch = np.empty(d * ne, dtype=xy0.dtype), np.empty(d, dtype=np.int64)
+    hid, cand, g = np.empty((hidden + 2) * per, dtype=xy0.dtype), w.rows, genomes
     tile_flat(xy0[:, :, 0], teams, x)
     tile_flat(xy0[:, :, 1], teams, y)
     tile_flat(heading0, teams, heading)
@@ -107,11 +101,6 @@ def _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, p
         from_flat(x, final_xy[:, :, 0])
         from_flat(y, final_xy[:, :, 1])
     score_end(w, xy, acc, returns, s)
-    keep(owned)
-    keep(owned_obs)
-    keep(owned_hid)
-    keep(owned_rows)
-    keep(owned_layout)
 
 
 # ---- batch-first steps: an environment's (PettingZoo, vectorised), the rollout's hooks one call at a time ----------
@@ -244,22 +233,17 @@ def evaluate(genomes, xy0, heading0, fields, returns, final_xy):
 
 
 @njit(nogil=True, **FAST)
-def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass, counters):
+def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy, per_pass):
     """:func:`evaluate` of B teams (B*N, G) float64 (team b's rovers in rows ``b*N ..``) on the same initial
     conditions, ``per_pass`` teams side by side in one rollout's lanes (:mod:`~rovermarl.env.kernel.lanes`): scores
     (B,), sane (B,), returns (B*E,) (team b's from ``b*E``), final_xy (B*E, N, 2) unless its first axis is
-    zero-sized. Each score is the bits the team's own :func:`evaluate` gives, whichever teams share its pass.
-    counters (1,) int64, zero at first: the next team to take. Several threads may run this
-    call on the same arguments at once (the GIL is released; :func:`serve`): each takes the next pass until none is
-    left (``lanes.claim``)."""
+    zero-sized. Each score is the bits the team's own :func:`evaluate` gives, whichever teams share its pass, so
+    threads may each run this call on a chunk of a population (the GIL is released: ``prepared.score_teams``)."""
     n_ep, n = heading0.shape
     b_all = scores.shape[0]
     w = KernelWorld(*fields)
     no_xy, no_heading = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1))
-    while True:
-        b0 = claim(counters, 0, per_pass)
-        if b0 >= b_all:
-            break
+    for b0 in range(0, b_all, per_pass):
         b1 = min(b0 + per_pass, b_all)
         sane_teams(teams[b0 * n:b1 * n], n, sane[b0:b1])
         final = final_xy[b0 * n_ep:b1 * n_ep] if final_xy.shape[0] else final_xy
@@ -267,32 +251,3 @@ def evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final_xy,
                 no_heading, final)
         for b in range(b0, b1):
             scores[b] = score(returns[b * n_ep:(b + 1) * n_ep])
-
-
-@njit(nogil=True, **FAST)
-def serve(xy0, heading0, fields, box, counters, epoch, idle):
-    """A helper thread's work (:mod:`rovermarl.env.relay`): wait in compiled code for populations on these initial
-    conditions posted to the ``box`` (:mod:`~rovermarl.env.kernel.mailbox`) and take passes of each with the caller
-    (:func:`evaluate_many` on the job's arrays and ``counters``); return after ``idle`` reads with no job, or once
-    the box's epoch is no longer ``epoch``."""
-    n_ep, n = heading0.shape
-    served, quiet = -1, 0
-    add(box, AWAKE, 1)
-    while True:
-        gen = open_job(box, served, epoch)
-        if gen < 0 and quiet < idle and load(box, EPOCH) == epoch:
-            quiet += 1
-            pause()
-            continue
-        if gen < 0:
-            add(box, AWAKE, -1)
-            gen = open_job(box, served, epoch)       # posted as this stopped, by a caller that saw it awake
-            if gen < 0:
-                return
-            add(box, AWAKE, 1)
-        add(box, INSIDE, 1)
-        if open_job(box, served, epoch) == gen and seated(box):
-            teams, returns, scores, sane, final = job_arrays(box, n_ep, n)
-            evaluate_many(teams, xy0, heading0, fields, returns, scores, sane, final, load(box, PER_PASS), counters)
-        add(box, INSIDE, -1)
-        served, quiet = gen, 0

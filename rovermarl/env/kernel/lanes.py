@@ -4,19 +4,12 @@ The fused rollout keeps (rover, episode) pairs rover-major, ``q = i*L + l`` over
 initial conditions take L = B*E lanes, team b's episodes at ``l = b*E + e`` (genome row ``b*N + i``), so one pass
 of every stage serves B teams; B = 1 is one team, lane for lane the single rollout. Every stage works lane by lane,
 so each team's returns are the bits its own rollout gives.
-
-Threads share a population without the GIL: each takes the next pass from an int64 counter with an atomic
-fetch-and-add (:func:`claim`). A Python pool's hand-offs (a
-task queue, the GIL, a future) cost 80-110 us each on this machine, a tenth of a two-core call of 64 float32 teams;
-:mod:`~rovermarl.env.kernel.mailbox` hands the population to helpers that wait in compiled code instead.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from numba import types
-from numba.core import cgutils
-from numba.extending import intrinsic, overload
+from numba.extending import overload
 
 from rovermarl.jit import njit
 
@@ -74,23 +67,3 @@ def sane_teams(genomes, n, out):
             for v in range(genomes.shape[1]):
                 ok &= abs(genomes[r, v]) < SANE
         out[b] = ok
-
-
-@intrinsic
-def claim(typingctx, counters, k, amount):
-    """``counters[k] += amount`` as one atomic step (sequentially consistent), returning the value before: several
-    threads taking the next passes of a population from one int64 counter never take the same one."""
-    if not (isinstance(counters, types.Array) and counters.dtype == types.int64 and counters.layout == "C"):
-        return None
-
-    def codegen(context, builder, sig, args):
-        ptr = _element(context, builder, sig, args)
-        return builder.atomic_rmw("add", ptr, context.cast(builder, args[2], sig.args[2], types.int64), "seq_cst")
-    return types.int64(counters, k, amount), codegen
-
-
-def _element(context, builder, sig, args):
-    """A pointer to element ``k`` of the counters (``args[:2]``; no bounds check: callers pass 0 of a (1,))."""
-    ary = context.make_array(sig.args[0])(context, builder, args[0])
-    k = context.cast(builder, args[1], sig.args[1], types.intp)
-    return cgutils.get_item_pointer(context, builder, sig.args[0], ary, [k])

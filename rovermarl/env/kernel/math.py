@@ -11,6 +11,11 @@ Branchless (selects only) so that LLVM vectorises the loops that inline them: nu
 to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py).
 ``FAST`` are the compile options of every vectorised kernel function: FMA contraction only (no reassociation, no
 finite-math assumptions), so results differ from plain IEEE arithmetic by rounding only.
+
+The one LLVM intrinsic, :func:`_pow2` (2^n from its bits), is worth 3.9x a call: ``python benchmarks/intrinsics.py
+--pairs 3`` (``plain_pow2``: ``math.ldexp(1.0, n)`` instead, a libm call that leaves the tanh loops scalar), float64
+duo ``World.evaluate`` 181-185 against 46.8-48.5 us, alternated processes on one pinned core of a loaded machine
+(load average 8.7, 2026-12-06; ``docs/PERFORMANCE.md``).
 """
 
 from __future__ import annotations

@@ -11,6 +11,10 @@ what the FMA contraction of ``h + x * w`` (the kernel's ``FAST`` options) comput
 plain loops (``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of episodes (:func:`lanes`: 8 float64 or
 16 float32); LLVM splits them into the target's registers (one 512-bit register or two 256-bit ones per unit).
 :func:`output_tile` does the same for the output layer's 2 units, whose inputs are the hidden units.
+
+Worth 1.86x a call: ``python benchmarks/intrinsics.py --pairs 3`` (``plain_tiles``: ``stages._mlp``'s plain loops
+for every tile), float64 duo ``World.evaluate`` 85.8-90.0 against 46.8-48.5 us, alternated processes on one pinned
+core of a loaded machine (load average 8.7, 2026-12-06; ``docs/PERFORMANCE.md``).
 """
 
 from __future__ import annotations

@@ -192,8 +192,7 @@ def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
     Where :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the
     ranged ``atan2`` (the same bits with fewer operations), else the general one. Returns whether it held.
     Inlined: as a call of its own it counted references to its 7 arrays around its call of :func:`_sense_rows`, 16
-    atomic instructions a step (gdb on NRT_incref/NRT_decref: the rollout made about 1,575 such calls; 136 are left
-    with this, the other inlinings and the step loop's borrowed arrays)."""
+    atomic instructions a step (gdb on NRT_incref/NRT_decref)."""
     if in_range(x, y, sin_h, cos_h, poi_xy):
         _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, True)
         return True
