@@ -25,6 +25,8 @@ recordings follow (``docs/WORLDS.md``).
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cached_property
@@ -77,8 +79,18 @@ class World(Params, Task, Starts, Scenario):
     def __post_init__(self):
         super().__post_init__()                 # the parameters' checks, then the plug-in's (check)
         self.kernel                             # noqa: B018 -- built now: a bad plug-in fails here, in one line
-        if self.hooks != ROVERS or self.state:
-            self.check_sense()
+        if self.hooks != ROVERS or self.state:           # a plug-in's hooks: one line naming its file if they fail
+            with errors.plugin_errors(self.plugin_homes()):
+                self.check_sense()
+                if self.state:
+                    self.check_state()
+
+    def plugin_homes(self) -> list[str]:
+        """The directories of the world's own code outside rovermarl (its class's module and its hooks'), where
+        :func:`errors.plugin_line` looks for the place of an error."""
+        modules = {type(self).__module__, *(getattr(h, "py_func", h).__module__ for h in self.hooks)}
+        files = [getattr(sys.modules.get(m), "__file__", None) for m in modules if not m.startswith("rovermarl.")]
+        return sorted({os.path.dirname(os.path.realpath(f)) for f in files if f})
 
     @cached_property
     def kernel(self) -> kernel.KernelWorld:
