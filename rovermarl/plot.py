@@ -19,6 +19,7 @@ from hydra.experimental.callback import Callback
 
 from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.sweep import SweepError
+from rovermarl.errors import PluginError
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
@@ -83,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             return
         from rovermarl.analysis.figures import plot_sweep
         index = plot_sweep(args.path, out, log=log, **kwargs)
-    except (SweepError, OSError) as e:                      # OSError: a link, FIFO or corrupt file refused
+    except (SweepError, OSError, PluginError) as e:         # OSError: a link, FIFO or corrupt file refused
         print(f"{PROG}: error: {e}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])

@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None) -> None:
     _REARM.clear()
     if ours:
         _adopt_orphans()
-    stop = None
+    stop, cfgs = None, []
     try:
         args, parser, cfgs = check(argv)
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
@@ -229,6 +229,11 @@ def main(argv: list[str] | None = None) -> None:
             _SIGNALS.append(signal.SIGINT)
     except Stop as e:
         stop = e
+    except Exception as e:                                           # the compile ahead: a plug-in's hook failed
+        homes = [h for c in cfgs for h in plugin_homes(c)]
+        if os.environ.get("HYDRA_FULL_ERROR") == "1" or (line := plugin_line(e, homes)) is None:
+            raise
+        stop = Stop(f"{PROG}: error: a plug-in failed: {line} (HYDRA_FULL_ERROR=1: the full text)")
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
