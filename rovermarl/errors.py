@@ -171,6 +171,11 @@ def _numba_line(text: str, homes) -> str | None:
     return f"{named[-1]} in {file}:{line} does not compile: {first}"
 
 
+def config_plugin_line(exc: BaseException, cfgs) -> str | None:
+    """:func:`plugin_line` of ``exc`` over the plug-ins that the configs ``cfgs`` name; None under :func:`verbose`."""
+    return None if verbose() else plugin_line(exc, [home for cfg in cfgs for home in plugin_homes(cfg)])
+
+
 def plugin_homes(cfg) -> list[str]:
     """The directories of the plug-in modules (outside rovermarl) that a config's ``_target_`` keys name and that
     this process has imported."""
