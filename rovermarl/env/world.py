@@ -44,7 +44,7 @@ from rovermarl.env.prepared import Prepared, genomes_in, score_teams, warn_insan
 from rovermarl.env.scenario import Scenario
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
-from rovermarl.jit import say_if_cold
+from rovermarl.jit import name_compiled, say_if_cold
 
 _NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
@@ -109,7 +109,10 @@ class World(Params, Task, Starts, Scenario):
     def compiled(self):
         """The module of the world's compiled functions (``rollout``, ``observe``, ``step``, ``returns_of``):
         :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
-        return kernel_module(self.hooks, tuple(self.state))
+        module = kernel_module(self.hooks, tuple(self.state))
+        if module.__name__.startswith("rovermarl_world_"):             # the compile notice names the world
+            name_compiled(module.__name__, f"{type(self).__name__}'s kernel ({type(self).__module__})")
+        return module
 
     def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:
         """:attr:`kernel` with the initial conditions' ``layout`` (E, K) (a world without one: :attr:`kernel`)."""
