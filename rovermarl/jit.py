@@ -10,7 +10,7 @@ Editing any of them recompiles what depends on it, in the package or in a plug-i
 The cache stays where numba puts it (the package's ``__pycache__`` dirs, or ``NUMBA_CACHE_DIR``).
 
 Every compile that numba does (a cache miss) is seen by a listener of numba's ``numba:compile`` events: the first of a
-process that compiles rovermarl's code says so on stderr, naming the world and the function (:func:`name_compiled`),
+process in a world's kernel or loop says so on stderr, naming the world and the function (:func:`name_compiled`),
 and :func:`compile_seconds` adds up their time, so that a job's throughput leaves it out.
 """
 
@@ -84,7 +84,7 @@ class _Compiles(event.Listener):
             cls.started = time.perf_counter()
             fn = getattr(ev.data.get("dispatcher"), "py_func", None)
             module = getattr(fn, "__module__", "") or ""
-            if not _SAID and (module in _NAMES or module.startswith("rovermarl.")):
+            if not _SAID and module in _NAMES:                   # a world's kernel or loop: the long compiles
                 said()
                 print(f"rovermarl: numba compiles {compiled_name(module)} ({fn.__name__}) for this machine now "
                       "(about 20 s on an idle core, once; later processes load it from the cache; python -m "

@@ -10,12 +10,12 @@ from dataclasses import dataclass
 
 from rovermarl.env import State, World
 from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.math import like
+from rovermarl.env.kernel.math import FAST, like
 from rovermarl.env.kernel.stages import move_flat
 from rovermarl.jit import njit
 
 
-@njit(cache=True)
+@njit(inline="always", **FAST)
 def begin(x, y, n, w, s):
     """Each rover's charge from the layout (per episode, one number per rover)."""
     bat = s[0]
@@ -25,7 +25,7 @@ def begin(x, y, n, w, s):
         bat[q, 1] = 0.0
 
 
-@njit(cache=True)
+@njit(inline="always", **FAST)
 def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
     """The paper's motion at the speed the charge allows; each step spends |speed| of it."""
     bat = s[0]
