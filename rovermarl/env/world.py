@@ -82,8 +82,7 @@ class World(Params, Task, Starts, Scenario):
         if self.hooks != ROVERS or self.state:           # a plug-in's hooks: one line naming its file if they fail
             with errors.plugin_errors(self.plugin_homes()):
                 self.check_sense()
-                if self.state:
-                    self.check_state()
+                self.check_state()                      # every hook tried once, the state guarded
 
     def plugin_homes(self) -> list[str]:
         """The directories of the world's own code outside rovermarl (its class's module and its hooks'), where
