@@ -160,15 +160,17 @@ def _numba_line(text: str, homes) -> str | None:
         here = [n for n in named if os.path.realpath(inspect.getsourcefile(funcs[n]) or "") == os.path.realpath(file)]
         func = (here or named or ["a function"])[-1]
         return f"{func} in {os.path.realpath(file)}:{line} does not compile: {first}"
+    missing = re.search(r"name '(\w+)' is not defined", text)
+    uses = {}                                                    # the plug-in's functions that use an undefined name
+    for name, fn in funcs.items() if missing else ():
+        source, start = inspect.getsourcelines(fn)
+        uses[name] = next((start + i for i, ln in enumerate(source) if re.search(rf"\b{missing[1]}\b", ln)), None)
+    named = named or [n for n, line in uses.items() if line is not None]    # an inlined hook: numba names none
     if not named:
         return None
     fn = funcs[named[-1]]
-    file, line = inspect.getsourcefile(fn), fn.__code__.co_firstlineno
-    missing = re.search(r"name '(\w+)' is not defined", text)
-    if missing:                                                  # the first line of the function that uses it
-        source, start = inspect.getsourcelines(fn)
-        line = next((start + i for i, ln in enumerate(source) if re.search(rf"\b{missing[1]}\b", ln)), line)
-    return f"{named[-1]} in {file}:{line} does not compile: {first}"
+    line = uses.get(named[-1]) or fn.__code__.co_firstlineno
+    return f"{named[-1]} in {inspect.getsourcefile(fn)}:{line} does not compile: {first}"
 
 
 def config_plugin_line(exc: BaseException, cfgs) -> str | None:
