@@ -110,7 +110,7 @@ class World(Params, Task, Starts, Scenario):
         :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
         module = kernel_module(self.hooks, tuple(self.state))
         if module.__name__.startswith("rovermarl_world_"):             # the compile notice names the world
-            name_compiled(module.__name__, f"{type(self).__name__}'s kernel ({type(self).__module__})")
+            name_compiled(module.__name__, f"{type(self).__name__}'s kernel from {type(self).__module__}")
         return module
 
     def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:

@@ -19,26 +19,29 @@ from rovermarl.runner.chunk import parts, to_plain
 from rovermarl.runner.job import run_job
 
 
-def cold(cfg: DictConfig) -> list[str]:
+def cold(cfg: DictConfig) -> dict[str, list[str]]:
     """What of the job's compiled code is not in numba's cache yet for its world and precision (a first run compiles
-    it): the world's rollout and evaluations, and the compiled CC-(1+1)-ES loop where the job runs it; empty when
-    all is cached. Each as the compile notice names it (``jit.compiled_name``)."""
+    it): the world's rollout and evaluation, and the compiled CC-(1+1)-ES loop where the job runs it (a population
+    algorithm's batched evaluation instead), as {what the compile notice calls their module
+    (``jit.compiled_name``): [function, ...]}; empty when all is cached."""
     built = parts(to_plain(cfg))                 # the job's world and algorithm, as validate built them
     world, algorithm = built.world, built.algorithm
     kernel = world.compiled
-    code = [getattr(kernel, name, None) for name in ("rollout", "evaluate", "evaluate_many")]
-    if isinstance(algorithm, CC11ES) and algorithm.loop != "python" and compiled.refusal(
+    code = [kernel.rollout, kernel.evaluate]
+    if not isinstance(algorithm, CC11ES):                               # a population's teams: in one call
+        code.append(getattr(kernel, "evaluate_many", None))
+    elif algorithm.loop != "python" and compiled.refusal(
             algorithm, built.evaluation["fresh_ic"], cfg.parallel.get("ic_shards", 1) <= 1) is None:
         code.append(compiled.loop_of(kernel)._generations)
     want = f"array({world.dtype}"
-    missing = []
+    missing: dict[str, list[str]] = {}
     for fn in filter(None, code):
         try:
             index = fn._cache._cache_file._load_index()                  # {} when missing or stale
         except Exception:  # numba's internals moved: assume the worst, the message only says a compile may come
             index = {}
-        if not any(want in str(key[0]) for key in index):
-            missing.append(f"{jit.compiled_name(fn.py_func.__module__)} ({fn.py_func.__name__})")
+        if not any(want in str(t) for key in index for t in key[0]):   # str(t): "array(float64, 2d, C)"
+            missing.setdefault(jit.compiled_name(fn.py_func.__module__), []).append(fn.py_func.__name__)
     return missing
 
 
@@ -61,10 +64,10 @@ def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
         if key not in seen and (missing := cold(cfg)):
             seen.add(key)
             todo.append(cfg)
-            what += [m for m in missing if m not in what]
+            what += [f"{name} ({', '.join(fns)})" for name, fns in missing.items()]
     if not todo:
         return None
     said()                                             # the world's own notice would repeat this one
-    log(f"first run of this code here: numba compiles {', '.join(what)} for this machine (about 30 s on an idle "
+    log(f"first run of this code here: numba compiles {' and '.join(what)} for this machine (about 30 s on an idle "
         "core, once; later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
     return sum(warm(cfg) for cfg in todo)
