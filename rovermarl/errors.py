@@ -40,16 +40,16 @@ def verbose() -> bool:
 @contextlib.contextmanager
 def plugin_errors(homes):
     """Turn an exception that a plug-in's code in the directories ``homes`` caused into a :class:`PluginError`
-    (one line, :func:`plugin_line`; the original chained under :func:`verbose`)."""
+    (one line, :func:`plugin_line`); under :func:`verbose` the original, with its full text."""
     try:
         yield
     except ConfigError:
         raise
     except Exception as e:
-        line = plugin_line(e, homes)
+        line = None if verbose() else plugin_line(e, homes)
         if line is None:
             raise
-        raise PluginError(line) from (e if verbose() else None)
+        raise PluginError(line) from None
 
 
 def _show(value) -> str:

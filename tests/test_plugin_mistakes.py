@@ -108,10 +108,10 @@ def test_a_numba_compile_error_is_one_line_naming_the_function_and_its_line(tmp_
     line = str(caught.value)
     assert line == (f"move in {tmp_path / 'home' / 'typo_hooks.py'}:8 does not compile: NameError: name "
                     "'undefined_helper' is not defined"), line
-    monkeypatch.setenv("HYDRA_FULL_ERROR", "1")                 # the full text: numba's error, chained
-    with pytest.raises(errors.PluginError) as caught, errors.plugin_errors(home):
+    monkeypatch.setenv("HYDRA_FULL_ERROR", "1")                 # the full text: numba's own error
+    with pytest.raises(Exception, match="Failed in nopython mode pipeline") as caught, errors.plugin_errors(home):
         typo_kernel.roll(2.0)
-    assert "Failed in nopython mode pipeline" in str(caught.value.__cause__)
+    assert not isinstance(caught.value, errors.PluginError) and "During:" in str(caught.value)
 
 
 def test_a_template_substitution_that_does_not_match_stops_in_one_line():
