@@ -1,8 +1,12 @@
-"""Configuration errors: one line that names the key, the value and what is allowed."""
+"""Configuration errors: one line that names the key, the value and what is allowed; a plug-in's error: one line that
+names its file (:func:`plugin_line`)."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
+import re
 
 
 class ConfigError(ValueError):
@@ -15,6 +19,38 @@ class ConfigError(ValueError):
     def under(self, group: str) -> ConfigError:
         """The same error with its key prefixed by the config group, e.g. ``gamma`` -> ``k.gamma``."""
         return ConfigError(f"{group}.{self.key}", self.value, self.requirement)
+
+
+class PluginError(ConfigError):
+    """A plug-in's own code failed (raised, did not compile, wrote outside its state): ``str(err)`` is one line that
+    names its file (:func:`plugin_line`). A :class:`ConfigError`, so every entry point reports it as one."""
+
+    def __init__(self, line: str):
+        ValueError.__init__(self, line)
+        self.key, self.value, self.requirement = "plug-in", None, line
+
+    def under(self, group: str) -> PluginError:
+        return self
+
+
+def verbose() -> bool:
+    """Whether the full text of a plug-in's error is wanted (``HYDRA_FULL_ERROR=1``)."""
+    return os.environ.get("HYDRA_FULL_ERROR") == "1"
+
+
+@contextlib.contextmanager
+def plugin_errors(homes):
+    """Turn an exception that a plug-in's code in the directories ``homes`` caused into a :class:`PluginError`
+    (one line, :func:`plugin_line`); under :func:`verbose` the original, with its full text."""
+    try:
+        yield
+    except ConfigError:
+        raise
+    except Exception as e:
+        line = None if verbose() else plugin_line(e, homes)
+        if line is None:
+            raise
+        raise PluginError(line) from None
 
 
 def _show(value) -> str:
@@ -74,22 +110,25 @@ def _range(lo, hi) -> str:
 
 
 def plugin_line(exc: BaseException, homes) -> str | None:
-    """One line for an exception a plug-in's code raised (a frame in one of the directories ``homes``, those of the
-    plug-ins a config names: :func:`plugin_homes`): ``<Type>: <message> (in <file>:<line>, <function>)``, also for
-    a Ray task's error (its cause and the worker's traceback text); None for an exception that did not pass through
-    a plug-in's code."""
-    import os
-    import re
+    """One line for an exception a plug-in's code caused (code in one of the directories ``homes``, those of the
+    plug-ins a config names: :func:`plugin_homes`), also for a Ray task's error (its cause and the worker's
+    traceback text); None for an exception that did not pass through a plug-in's code:
+
+    - raised (also in compiled code, whose frames numba reports): ``<Type>: <message> (in <file>:<line>, <function>)``;
+    - a numba function that does not compile: ``<function> in <file>:<line> does not compile: <numba's first line>``.
+    """
     import traceback
 
     cause = getattr(exc, "cause", None) or exc
+    homes = [os.path.realpath(h) + os.sep for h in homes]
+    if any(c.__name__ == "NumbaError" for c in type(cause).__mro__):
+        return _numba_line(str(cause), homes)
     text = getattr(exc, "traceback_str", None) or (str(exc) if cause is not exc else None)   # Ray's: in its text
     if text:
         frames = [(f, int(n), fn) for f, n, fn in re.findall(r'File "([^"]+)", line (\d+), in (\S+)', text)]
     else:
         frames = [(f.filename, f.lineno, f.name) for f in traceback.extract_tb(cause.__traceback__)]
-    homes = [os.path.realpath(h) + os.sep for h in homes]
-    mine = [f for f in frames if any(os.path.realpath(f[0]).startswith(h) for h in homes)]
+    mine = [f for f in frames if _home(f[0], homes)]
     if not mine:
         return None
     file, line, func = mine[-1]
@@ -97,10 +136,52 @@ def plugin_line(exc: BaseException, homes) -> str | None:
     return f"{type(cause).__name__}: {message} (in {file}:{line}, {func})"
 
 
+def _home(file: str, homes) -> bool:
+    """Whether ``file`` is in one of the directories ``homes`` (a kernel generated around a plug-in is not)."""
+    path = os.path.realpath(file)
+    return any(path.startswith(h) for h in homes) and f"{os.sep}rovermarl_worlds{os.sep}" not in path
+
+
+def _numba_line(text: str, homes) -> str | None:
+    """:func:`plugin_line` of numba's compile error ``text``: the innermost place in a plug-in's file that it names,
+    else the plug-in function it names (a name it cannot resolve: the line that uses it)."""
+    import inspect
+    import sys
+
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip()]
+    first = next((ln for ln in lines if not ln.startswith(("Failed in ", "During:"))), "(no message)")
+    places = [(f, int(n)) for f, n in re.findall(r'File "([^"]+)", line (\d+)', text) if _home(f, homes)]
+    funcs = {}                                                   # the plug-in's numba functions by name
+    for module in list(sys.modules.values()):
+        if _home(getattr(module, "__file__", None) or "/", homes):
+            funcs.update((k, v.py_func) for k, v in vars(module).items() if hasattr(v, "py_func"))
+    named = [n for n in re.findall(r"<function (\w+) at 0x", text) if n in funcs]
+    if places:
+        file, line = places[-1]
+        here = [n for n in named if os.path.realpath(inspect.getsourcefile(funcs[n]) or "") == os.path.realpath(file)]
+        func = (here or named or ["a function"])[-1]
+        return f"{func} in {os.path.realpath(file)}:{line} does not compile: {first}"
+    missing = re.search(r"name '(\w+)' is not defined", text)
+    uses = {}                                                    # the plug-in's functions that use an undefined name
+    for name, fn in funcs.items() if missing else ():
+        source, start = inspect.getsourcelines(fn)
+        uses[name] = next((start + i for i, ln in enumerate(source) if re.search(rf"\b{missing[1]}\b", ln)), None)
+    named = named or [n for n, line in uses.items() if line is not None]    # an inlined hook: numba names none
+    if not named:
+        return None
+    fn = funcs[named[-1]]
+    line = uses.get(named[-1]) or fn.__code__.co_firstlineno
+    return f"{named[-1]} in {inspect.getsourcefile(fn)}:{line} does not compile: {first}"
+
+
+def config_plugin_line(exc: BaseException, cfgs) -> str | None:
+    """:func:`plugin_line` of ``exc`` over the plug-ins that the configs ``cfgs`` name; None under :func:`verbose`."""
+    return None if verbose() else plugin_line(exc, [home for cfg in cfgs for home in plugin_homes(cfg)])
+
+
 def plugin_homes(cfg) -> list[str]:
     """The directories of the plug-in modules (outside rovermarl) that a config's ``_target_`` keys name and that
     this process has imported."""
-    import os
     import sys
 
     from omegaconf import OmegaConf

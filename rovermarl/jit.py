@@ -8,6 +8,10 @@ all of rovermarl's, and for a plug-in outside the package (a world, an operator)
 Editing any of them recompiles what depends on it, in the package or in a plug-in. A build with debug info
 (``NUMBA_DEBUGINFO``, ``NUMBA_ENABLE_PROFILING``: not vectorised) is stamped apart, so later plain runs never load it.
 The cache stays where numba puts it (the package's ``__pycache__`` dirs, or ``NUMBA_CACHE_DIR``).
+
+Every compile that numba does (a cache miss) is seen by a listener of numba's ``numba:compile`` events: the first of a
+process in a world's kernel or loop says so on stderr, naming the world and the function (:func:`name_compiled`),
+and :func:`compile_seconds` adds up their time, so that a job's throughput leaves it out.
 """
 
 from __future__ import annotations
@@ -16,14 +20,17 @@ import functools
 import hashlib
 import os
 import sys
+import time
 from pathlib import Path
 
 from numba import njit, typeof
-from numba.core import caching, config
+from numba.core import caching, config, event
 
-__all__ = ["njit", "say_if_cold", "sources_stamp"]
+__all__ = ["compile_seconds", "compiled_name", "name_compiled", "njit", "say_if_cold", "sources_stamp"]
 PACKAGE = Path(__file__).resolve().parent
 _SAID = []                        # non-empty once this process has said that it compiles (or train said it)
+_NAMES = {"rovermarl.env.kernel.fused": "the rover world's kernel",
+          "rovermarl.algorithms.compiled": "CC-(1+1)-ES's compiled loop in the rover world"}
 
 
 def say_if_cold(dispatcher, args: tuple, what: str) -> None:
@@ -46,6 +53,51 @@ def say_if_cold(dispatcher, args: tuple, what: str) -> None:
 def said() -> None:
     """Mark the compile as announced in this process (``rovermarl.train`` says it its own way)."""
     _SAID.append(True)
+
+
+def name_compiled(module: str, name: str) -> None:
+    """Name the compiled code of ``module`` in the compile notice (a world's generated kernel: ``"Battery's
+    kernel"``)."""
+    _NAMES[module] = name
+
+
+def compiled_name(module: str) -> str:
+    """What the compile notice calls the compiled code of ``module``."""
+    return _NAMES.get(module, module)
+
+
+def compile_seconds() -> float:
+    """Seconds this process has spent in numba compiles so far (cache loads not included)."""
+    return _Compiles.seconds
+
+
+class _Compiles(event.Listener):
+    """numba's compile events: their time (the outermost of nested ones), and the notice at the first of rovermarl's
+    code in a process."""
+
+    seconds, depth, started = 0.0, 0, 0.0
+
+    def on_start(self, ev):
+        cls = type(self)
+        cls.depth += 1
+        if cls.depth == 1:
+            cls.started = time.perf_counter()
+            fn = getattr(ev.data.get("dispatcher"), "py_func", None)
+            module = getattr(fn, "__module__", "") or ""
+            if not _SAID and module in _NAMES:                   # a world's kernel or loop: the long compiles
+                said()
+                print(f"rovermarl: numba compiles {compiled_name(module)} ({fn.__name__}) for this machine now "
+                      "(about 20 s on an idle core, once; later processes load it from the cache; python -m "
+                      "rovermarl.warmup compiles ahead)", file=sys.stderr, flush=True)
+
+    def on_end(self, ev):
+        cls = type(self)
+        cls.depth -= 1
+        if cls.depth == 0:
+            cls.seconds += time.perf_counter() - cls.started
+
+
+event.register("numba:compile", _Compiles())
 
 
 @functools.cache

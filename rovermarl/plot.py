@@ -23,7 +23,7 @@ from hydra.experimental.callback import Callback
 from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
-from rovermarl.errors import Printable, printable
+from rovermarl.errors import PluginError, Printable, printable
 from rovermarl.record.atomic import beneath
 
 log = logging.getLogger("rovermarl.plot")
@@ -94,7 +94,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         with (beneath(args.path if own else out, create=not own) if args.path.is_dir()
               else contextlib.nullcontext()):                         # no PATH: plot_sweep says so, writes nothing
             index = plot_sweep(args.path, out, log=log, **kwargs)
-    except (SweepError, ResultsError, OSError) as e:        # OSError: a link, FIFO or corrupt file refused
+    except (SweepError, ResultsError, OSError, PluginError) as e:     # OSError: a link, FIFO or corrupt file
         print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])

@@ -31,7 +31,7 @@ import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-from rovermarl.errors import ConfigError, printable
+from rovermarl.errors import ConfigError, plugin_errors, printable
 
 
 class ReplayError(Exception):
@@ -89,7 +89,8 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
         ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)
     else:
         ic = world.initial_conditions(ic_seed)
-    roll = world.rollout(genomes, ic)
+    with plugin_errors(world.plugin_homes()):                          # a plug-in's hook: one line naming it
+        roll = world.rollout(genomes, ic)
     count = occupancy(world, roll.xy[:, -1])
     score = float(roll.returns.mean())
     result = {"seed": 0, "score": np.array([score]), "behaviour_generation": np.zeros(1, dtype=np.int64),
@@ -101,7 +102,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     root, out = (job, run / f"resim_ic-{tag}.rrd") if out is None else (Path(out).parent, Path(out))
     with beneath(root, create=root != job):                           # a run dir swapped for a link: refused
         write_rrd(out, result, world, recording_id=f"{run.name}-resim-{tag}")
-    print(f"re-simulated {run} on initial conditions {tag}: score {score:.4g} -> {out}")
+    print(f"re-simulated {run} on initial conditions {tag}: score {score} -> {out}")
     return out
 
 

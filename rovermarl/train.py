@@ -1,10 +1,10 @@
 """Train: ``python -m rovermarl.train [-m] [group=option ...] [key=value ...]``.
 
-Every job of an invocation is composed and validated before anything runs (and before Ray starts); a bad config
-exits with status 2 and one line on stderr (a plug-in's error: 1, one line). Output dirs are named after the
-command's overrides (``outputs/multirun/<overrides>/<job overrides>``), so relaunching the same command resumes it.
-Ctrl-C and SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``:
-the traceback too); Ray is shut down and no process it started outlives the launch."""
+Every job is composed and validated (its world built) before anything runs and before Ray starts: a bad config or
+plug-in exits 2 with one line on stderr (a plug-in's error later: 1, one line naming its file). Output dirs are named
+after the command's overrides (``outputs/multirun/<overrides>/<job overrides>``): relaunching it resumes it. Ctrl-C
+and SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``: the
+traceback too); Ray is shut down and no process it started outlives the launch."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
 from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
-from rovermarl.errors import ConfigError, plugin_homes, plugin_line  # noqa: E402
+from rovermarl.errors import ConfigError, config_plugin_line  # noqa: E402
 from rovermarl.parallel import BackendError  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.atomic import check_output_dir  # noqa: E402
@@ -76,14 +76,13 @@ def task(cfg: DictConfig) -> float:
     except Exception as e:
         if _SIGNALS:   # cleanup code raised over our interrupt (numpy's savez closing its zip): it is the interrupt
             raise (Terminated() if signal.SIGTERM in _SIGNALS else KeyboardInterrupt()) from None
-        if os.environ.get("HYDRA_FULL_ERROR") == "1" or (line := plugin_line(e, plugin_homes(cfg))) is None:
+        if (line := config_plugin_line(e, [cfg])) is None:
             raise
-        raise Stop(f"{PROG}: error: {name}: a plug-in raised {line} (HYDRA_FULL_ERROR=1: traceback)") from None
+        raise Stop(f"{PROG}: error: {name}: a plug-in failed: {line} (HYDRA_FULL_ERROR=1: the full text)") from None
 
 
 class Stop(SystemExit):
-    """The launch ends with one line on stderr and ``code``; :func:`main` prints it once Ray is down, so that nothing
-    Ray logs while it shuts down comes after it."""
+    """The launch ends with one line on stderr and ``code``; :func:`main` prints it once Ray is down (last)."""
 
     def __init__(self, line: str, code: int = 1):
         super().__init__(code)
@@ -210,7 +209,7 @@ def main(argv: list[str] | None = None) -> None:
     _REARM.clear()
     if ours:
         _adopt_orphans()
-    stop = None
+    stop, cfgs = None, []
     try:
         args, parser, cfgs = check(argv)
         with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
@@ -230,6 +229,10 @@ def main(argv: list[str] | None = None) -> None:
             _SIGNALS.append(signal.SIGINT)
     except Stop as e:
         stop = e
+    except Exception as e:                                           # the compile ahead: a plug-in's hook failed
+        if (line := config_plugin_line(e, cfgs)) is None:
+            raise
+        stop = Stop(f"{PROG}: error: a plug-in failed: {line} (HYDRA_FULL_ERROR=1: the full text)")
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
@@ -325,8 +328,8 @@ def _quiet_stderr():
 
 
 def _stop_ray() -> None:
-    """Shut down the Ray this process started (also one cut while it started); then no process of Ray's that this
-    driver started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut)."""
+    """Shut down the Ray this process started (also one cut while it started); no process of Ray's that this driver
+    started outlives it (Ray leaves its agents behind when its GCS or raylet died, or its start was cut)."""
     import psutil
 
     started = [p for p in psutil.Process().children(recursive=True) if _is_ray(p)]
@@ -371,12 +374,9 @@ def _is_ray(p) -> bool:
     """A process of Ray's (GCS, raylet, agents, workers), not one that the user's code started."""
     import psutil
     try:
-        return p.is_running() and ("ray" in " ".join(p.cmdline()[:6]).lower() or p.name() in RAY_NAMES)
+        return p.is_running() and ("ray" in " ".join(p.cmdline()[:6]).lower() or p.name() in ("raylet", "gcs_server"))
     except psutil.Error:
         return False
-
-
-RAY_NAMES = ("raylet", "gcs_server")
 
 
 def _cli() -> None:

@@ -1,6 +1,6 @@
 """The fault-injection suite, in the spirit of SQLite's crash and I/O-error tests: at every write point of a run,
 the process is killed there (SIGKILL, its temp copy complete but not renamed) or the write fails as a full or
-broken disk does (ENOSPC, EIO, through the ``ROVERMARL_FAULT`` hook of :func:`rovermarl.record.outputs.fault`);
+broken disk does (ENOSPC, EIO, through the ``ROVERMARL_FAULT`` hook of :func:`rovermarl.record.atomic.fault`);
 then the job is relaunched, and nothing may be lost: the results equal an undisturbed job's, bit for bit, every
 run verifies, no temp file is left, and a failed write ends in one line with exit 1."""
 

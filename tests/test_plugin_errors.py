@@ -57,6 +57,6 @@ def test_a_plugin_error_in_a_worker_reaches_the_user_in_one_line(picky, parallel
                    env={"PYTHONPATH": str(ROOT), "HYDRA_FULL_ERROR": "0"}, timeout=600)
     assert proc.returncode != 0
     last = proc.stderr.strip().splitlines()[-1]
-    assert "a plug-in raised ValueError: picky: at most 16 layouts at once, not 256 (in " in last, proc.stderr[-3000:]
+    assert "a plug-in failed: ValueError: picky: at most 16 layouts at once, not 256 (in " in last, proc.stderr[-3000:]
     assert "picky.py:" in last and "Traceback" not in proc.stderr, proc.stderr[-3000:]
     assert os.path.isdir(picky)

@@ -34,7 +34,7 @@ from rovermarl.env.kernel.math import FAST
 from rovermarl.jit import njit
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", **FAST)
 def place(w, s, dt):
     """Every episode's step ``t`` on by ``dt`` (0: to 0), and its POIs there: centre + radius * (cos, sin)(phase +
     speed * t) (float64)."""
@@ -48,13 +48,13 @@ def place(w, s, dt):
             pois[e, 2 * j + 1] = centres[j, 1] + radius * math.sin(a)
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", **FAST)
 def begin(x, y, n, w, s):
     """Step 0: each POI at its phase."""
     place(w, s, 0)
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", **FAST)
 def tick(x, y, n, w, s):
     """After each move: one step on."""
     place(w, s, 1)
@@ -66,7 +66,7 @@ def sense(x, y, sin_h, cos_h, n, w, s, obs):
     return sense_at(x, y, sin_h, cos_h, n, s[0], w.poi_type, w.sensor_range, obs)
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", **FAST)
 def score_end(w, xy, acc, returns, s):
     """The paper's reward rule, each POI where it is after the last step."""
     reward_at(xy, s[0], w.coupling, w.value, w.obs_radius, returns)

@@ -39,7 +39,7 @@ def sense(x, y, sin_h, cos_h, n, w, s, obs):
     return sense_at(x, y, sin_h, cos_h, n, w.layout, w.poi_type, w.sensor_range, obs)
 
 
-@njit(inline="always", cache=True)
+@njit(inline="always", **FAST)
 def score_end(w, xy, acc, returns, s):
     """The paper's reward rule on the episode's POIs: xy (E, N, 2) after the last step."""
     reward_at(xy, w.layout, w.coupling, w.value, w.obs_radius, returns)

@@ -18,7 +18,7 @@ from omegaconf import OmegaConf
 from rovermarl.analysis.curves import read_exported, read_run_arrays, read_run_curve
 from rovermarl.analysis.levels import setup_rank
 from rovermarl.env import World, make_world
-from rovermarl.errors import printable
+from rovermarl.errors import PluginError, printable
 from rovermarl.record.safe_read import RunSize, check_tree, read_json, read_yaml
 
 # Config keys that never tell two methods apart: where and how a job runs, and the setup (figures group by it).
@@ -169,6 +169,8 @@ class Job:
                       lambda: make_world(self.setup)):
             try:
                 return build()
+            except PluginError:  # the plug-in's own code failed: its one line, not the paper's world in its place
+                raise
             except Exception:  # an odd config only costs the trajectory figures
                 pass
         return None

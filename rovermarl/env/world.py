@@ -25,6 +25,8 @@ recordings follow (``docs/WORLDS.md``).
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cached_property
@@ -42,7 +44,7 @@ from rovermarl.env.prepared import Prepared, final_in, genomes_in, score_teams, 
 from rovermarl.env.scenario import Scenario
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
-from rovermarl.jit import say_if_cold
+from rovermarl.jit import name_compiled, say_if_cold
 
 _NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
@@ -77,8 +79,17 @@ class World(Params, Task, Starts, Scenario):
     def __post_init__(self):
         super().__post_init__()                 # the parameters' checks, then the plug-in's (check)
         self.kernel                             # noqa: B018 -- built now: a bad plug-in fails here, in one line
-        if self.hooks != ROVERS or self.state:
-            self.check_sense()
+        if self.hooks != ROVERS or self.state:           # a plug-in's hooks: one line naming its file if they fail
+            with errors.plugin_errors(self.plugin_homes()):
+                self.check_sense()
+                self.check_state()                      # every hook tried once, the state guarded
+
+    def plugin_homes(self) -> list[str]:
+        """The directories of the world's own code outside rovermarl (its class's module and its hooks'), where
+        :func:`errors.plugin_line` looks for the place of an error."""
+        modules = {type(self).__module__, *(getattr(h, "py_func", h).__module__ for h in self.hooks)}
+        files = [getattr(sys.modules.get(m), "__file__", None) for m in modules if not m.startswith("rovermarl.")]
+        return sorted({os.path.dirname(os.path.realpath(f)) for f in files if f})
 
     @cached_property
     def kernel(self) -> kernel.KernelWorld:
@@ -97,7 +108,10 @@ class World(Params, Task, Starts, Scenario):
     def compiled(self):
         """The module of the world's compiled functions (``rollout``, ``observe``, ``step``, ``returns_of``):
         :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
-        return kernel_module(self.hooks, tuple(self.state))
+        module = kernel_module(self.hooks, tuple(self.state))
+        if module.__name__.startswith("rovermarl_world_"):             # the compile notice names the world
+            name_compiled(module.__name__, f"{type(self).__name__}'s kernel from {type(self).__module__}")
+        return module
 
     def kernel_for(self, layout: np.ndarray) -> kernel.KernelWorld:
         """:attr:`kernel` with the initial conditions' ``layout`` (E, K) (a world without one: :attr:`kernel`)."""

@@ -146,9 +146,12 @@ def outcome(score: np.ndarray, levels) -> dict:
 
 
 def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels, wall_time_s: float,
-              team_evals: int, heldout: dict[int, float], cpu_s: dict[int, float | None] | None = None) -> dict:
+              team_evals: int, heldout: dict[int, float], compile_s: float = 0.0,
+              cpu_s: dict[int, float | None] | None = None) -> dict:
     """The job's summary: config choices, per-seed final and held-out scores, first generations reaching each
-    level (``outcomes``: :func:`outcome` of each seed), each run's CPU-seconds (``cpu_s``; None: not recorded)."""
+    level (``outcomes``: :func:`outcome` of each seed), each run's CPU-seconds (``cpu_s``; None: not recorded); the
+    rate of team evaluations leaves out ``compile_s``, the seconds of the wall time that numba spent compiling in
+    this process."""
     final = {str(s): outcomes[s]["final"] for s in seeds}
     held = {str(s): float(heldout[s]) for s in seeds}
     return {
@@ -162,7 +165,8 @@ def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels
             str(lv): {str(s): outcomes[s]["first"][str(lv)] for s in seeds} for lv in levels},
         "wall_time_s": wall_time_s,
         "team_evals": team_evals,
-        "team_evals_per_s": team_evals / wall_time_s if wall_time_s > 0 else None,
+        "compile_s": compile_s,
+        "team_evals_per_s": team_evals / (wall_time_s - compile_s) if wall_time_s > compile_s else None,
         "cpu_s": {str(s): (None if (cpu_s or {}).get(s) is None else float(cpu_s[s])) for s in seeds},
         "provenance": provenance(),
     }

@@ -10,21 +10,39 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from rovermarl.env import World
+from rovermarl import jit
+from rovermarl.algorithms import compiled
+from rovermarl.algorithms.cc11es import CC11ES
 from rovermarl.jit import said
 from rovermarl.record.atomic import faults_off
+from rovermarl.runner.chunk import parts, to_plain
 from rovermarl.runner.job import run_job
 
 
-def cold(cfg: DictConfig) -> bool:
-    """Whether the job's rollout is not in numba's cache yet for its world and precision (a first run compiles)."""
-    world = World.from_config(cfg, trust=True)   # composed from the command line (or checked: check_targets)
-    try:
-        index = world.compiled.rollout._cache._cache_file._load_index()   # {} when missing or stale
-    except Exception:  # numba's internals moved: assume the worst, the message only says a compile may come
-        return True
-    want = f"array({world.dtype}, 2d, C)"
-    return not any(str(key[0][0]) == want for key in index)
+def cold(cfg: DictConfig) -> dict[str, list[str]]:
+    """What of the job's compiled code is not in numba's cache yet for its world and precision (a first run compiles
+    it): the world's rollout and evaluation, and the compiled CC-(1+1)-ES loop where the job runs it (a population
+    algorithm's batched evaluation instead), as {what the compile notice calls their module
+    (``jit.compiled_name``): [function, ...]}; empty when all is cached."""
+    built = parts(to_plain(cfg))                 # the job's world and algorithm, as validate built them
+    world, algorithm = built.world, built.algorithm
+    kernel = world.compiled
+    code = [kernel.rollout, kernel.evaluate]
+    if not isinstance(algorithm, CC11ES):                               # a population's teams: in one call
+        code.append(getattr(kernel, "evaluate_many", None))
+    elif algorithm.loop != "python" and compiled.refusal(
+            algorithm, built.evaluation["fresh_ic"], cfg.parallel.get("ic_shards", 1) <= 1) is None:
+        code.append(compiled.loop_of(kernel)._generations)
+    want = f"array({world.dtype}"
+    missing: dict[str, list[str]] = {}
+    for fn in filter(None, code):
+        try:
+            index = fn._cache._cache_file._load_index()                  # {} when missing or stale
+        except Exception:  # numba's internals moved: assume the worst, the message only says a compile may come
+            index = {}
+        if not any(want in str(t) for key in index for t in key[0]):   # str(t): "array(float64, 2d, C)"
+            missing.setdefault(jit.compiled_name(fn.py_func.__module__), []).append(fn.py_func.__name__)
+    return missing
 
 
 def warm(cfg: DictConfig) -> float:
@@ -40,15 +58,16 @@ def warm(cfg: DictConfig) -> float:
 def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
     """If a job's kernel is not cached: say so, compile it in this process (one job per world and precision) and
     return the seconds; None when everything was cached."""
-    todo, seen = [], set()
+    todo, seen, what = [], set(), []
     for cfg in cfgs:
         key = (str(cfg.env.get("_target_")), str(cfg.env.dtype), str(cfg.env.reward), str(cfg.algorithm._target_))
-        if key not in seen and cold(cfg):
+        if key not in seen and (missing := cold(cfg)):
             seen.add(key)
             todo.append(cfg)
+            what += [f"{name} ({', '.join(fns)})" for name, fns in missing.items()]
     if not todo:
         return None
     said()                                             # the world's own notice would repeat this one
-    log("first run of this code here: numba compiles the kernel this job uses (about 30 s on an idle core, once; "
-        "later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
+    log(f"first run of this code here: numba compiles {' and '.join(what)} for this machine (about 30 s on an idle "
+        "core, once; later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
     return sum(warm(cfg) for cfg in todo)

@@ -15,6 +15,7 @@ import numpy as np
 from omegaconf import DictConfig, OmegaConf
 from tqdm.auto import tqdm
 
+from rovermarl.jit import compile_seconds
 from rovermarl.parallel import run_records
 from rovermarl.record import atomic, checkpoint, lock
 from rovermarl.record.atomic import atomic_open
@@ -134,7 +135,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     if batch < len(todo):
         log.info("%s: %d runs stream in batches of %d (what fits in memory)", name, len(todo), batch)
     close_launch(job_dir)                                               # the compute of a launch that was killed
-    t0, evaluations, started = time.perf_counter(), 0, time.time()
+    t0, evaluations, started, compiling = time.perf_counter(), 0, time.time(), compile_seconds()
     with tqdm(total=len(todo) * cfg.generations, desc=name, unit="gen", disable=None, leave=False,
               dynamic_ncols=True) as bar:
         def on_chunk(rec: RunRecord, advanced: int) -> None:
@@ -161,8 +162,9 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
             run_records(cfg, job, records, on_chunk, advance)
             evaluations += sum(rec.evaluations for rec in records)
     wall = time.perf_counter() - t0
+    compiled = compile_seconds() - compiling                           # numba compiling here: not the job's speed
     summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
-                        heldout=heldout, cpu_s=cpu)
+                        heldout=heldout, compile_s=compiled, cpu_s=cpu)
     summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
     summary["train_ic"] = "fresh" if built.evaluation["fresh_ic"] else "fixed"   # what the learner trained on
     summary["final_team"] = built.algorithm.final_team                # which team the held-out score is of
@@ -174,8 +176,9 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     write_json(summary_path, summary)
     close_launch(job_dir, {"started_at": started, "finished_at": time.time(), "wall_time_s": wall,
                            "team_evals": summary["team_evals"], "runs_advanced": len(todo)})
-    log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s)", name,
-             summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0)
+    log.info("%s: median final score %.4g over %d seeds, %.1f s (%.0f team evals/s%s)", name,
+             summary["median_final_score"], len(seeds), wall, summary["team_evals_per_s"] or 0,
+             f", not counting {compiled:.0f} s of numba compiling" if compiled >= 0.05 else "")
     return summary
 
 

@@ -2,12 +2,15 @@
 
 numba compiles a call to another compiled function into its caller, and caches the result only if that function
 is a global of the caller's module (a function passed as an argument is recompiled in every process). So a world
-whose hooks or state are not the rover world's gets a module of its own: the source of ``fused.py`` with its
-``# hooks`` import importing the plug-in's functions instead, and a ``state_new`` written from the world's declared
-state (``World.state``), written beside numba's cache (``NUMBA_CACHE_DIR``, else a per-user cache dir: never into
-rovermarl's package) and imported from there. Its first line carries a hash of the source of every module that
-provides a hook (and of the modules of their packages that are loaded, and of the files beside them), so an edit
-of any hook rewrites it and numba recompiles (:mod:`rovermarl.jit` stamps the rest). The record it reads,
+whose hooks or state are not the rover world's gets a module of its own, made from ``fused.py`` as a template by
+:func:`fill` (each substitution asserted: a template that no longer matches stops in one line, never runs the paper's
+hooks): its ``# hooks`` import imports the plug-in's functions instead, and a ``state_new`` is written from the
+world's declared state (``World.state``). Named by its imports, its state and the files of its hooks' modules (two
+copies of a plug-in in two folders get two kernels), it is written into a folder of its own beside numba's cache
+(``NUMBA_CACHE_DIR``, else a per-user cache dir: never into rovermarl's package) and imported from there. Its first
+line carries a hash of the sources its own world uses (:func:`hook_sources`: every module that provides a hook and
+the plug-in modules they reach), so an edit of any of them rewrites it and numba recompiles it, and nothing of
+another world does (:mod:`rovermarl.jit` stamps the rest). The record it reads,
 :class:`~rovermarl.env.kernel.record.KernelWorld`, is one class for every copy: numba's cache index pickles it by
 name, so one plug-in may be imported under two module paths on one cache.
 """
@@ -19,13 +22,16 @@ import hashlib
 import importlib.util
 import os
 import sys
+import sysconfig
+import types
 from pathlib import Path
 
 from rovermarl.env.kernel import fused
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.jit import PACKAGE
 
-MARK = "(  # hooks\n"
+HOOKS_IMPORT = ("from rovermarl.env.kernel.hooks import (  # hooks\n"
+                + "".join(f"    {name},\n" for name in sorted((*Hooks._fields, "state_new"))) + ")\n")
 STATE_DTYPES = {"float": "w.poi_xy.dtype", "float64": "np.float64", "float32": "np.float32", "int64": "np.int64",
                 "bool": "np.bool_"}     # "float": the kernel's precision (env.dtype)
 
@@ -63,25 +69,45 @@ def _import_path(name: str, fn) -> tuple[str, str, str]:
 
 
 def hook_sources(modules) -> str:
-    """A hash of the source of every plug-in module in ``modules`` (rovermarl's own are stamped by
-    :mod:`rovermarl.jit`), of the loaded modules of their top-level packages, and of the ``.py`` files beside them."""
-    files = set()
-    for module in modules:
-        if module == "rovermarl" or module.startswith("rovermarl."):
-            continue
-        root = module.split(".")[0]
-        for name, mod in list(sys.modules.items()):
-            path = getattr(mod, "__file__", None)
-            if path and (name == root or name.startswith(root + ".")):
-                files.add(Path(path).resolve())
-        own = getattr(sys.modules[module], "__file__", None)          # None: a notebook's (its imports are its name)
-        if own:
-            files.update(Path(own).resolve().parent.glob("*.py"))
+    """A hash of the sources a world's hooks use: every plug-in module in ``modules`` and the plug-in modules their
+    globals reach (a module, or a function or class from one), transitively. A plug-in module is one outside
+    rovermarl (stamped by :mod:`rovermarl.jit`) and outside Python's and the environment's libraries; the files
+    beside a hook's module that it does not reach (another world, a script) are not part of it."""
     h = hashlib.sha256()
-    for path in sorted(files):
-        if path.suffix == ".py" and path.is_file():
-            h.update(str(path).encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
+    for path in sorted(_reached(modules)):
+        h.update(str(path).encode() + b"\0" + hashlib.sha256(path.read_bytes()).digest())
     return h.hexdigest()
+
+
+_LIBRARIES = tuple({os.path.realpath(sysconfig.get_paths()[k]) + os.sep for k in ("stdlib", "platstdlib", "purelib",
+                                                                                  "platlib")})
+
+
+def _own_file(name: str) -> Path | None:
+    """The source file of module ``name`` if it is a plug-in's (see :func:`hook_sources`), else None."""
+    if name is None or name == "rovermarl" or name.startswith("rovermarl."):
+        return None
+    path = getattr(sys.modules.get(name), "__file__", None)             # None: a notebook's, a built-in
+    if not path or not path.endswith(".py") or os.path.realpath(path).startswith(_LIBRARIES):
+        return None
+    return Path(path).resolve()
+
+
+def _reached(modules) -> set[Path]:
+    """The files of the plug-in modules ``modules`` and of those their globals reach."""
+    todo, seen, files = list(modules), set(), set()
+    while todo:
+        name = todo.pop()
+        if name in seen or (path := _own_file(name)) is None:
+            continue
+        seen.add(name)
+        files.add(path)
+        for value in vars(sys.modules[name]).values():
+            if isinstance(value, types.ModuleType):
+                todo.append(value.__name__)
+            else:
+                todo.append(getattr(getattr(value, "py_func", value), "__module__", None))
+    return files
 
 
 def cache_root() -> Path:
@@ -91,23 +117,36 @@ def cache_root() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "rovermarl"
 
 
+def fill(template: str, where: str, swaps: dict[str, str]) -> str:
+    """``template`` (the source of ``where``) with each key of ``swaps`` replaced by its value; each key must occur
+    in it exactly once, else RuntimeError (one line): generated code is never a template that silently did not
+    match."""
+    for old, new in swaps.items():
+        if template.count(old) != 1:
+            first = old.strip().splitlines()[0]
+            raise RuntimeError(f"{where}: expected once, found {template.count(old)} times: {first!r} "
+                               "(rovermarl.env.kernel.compose.fill: the template and its filler disagree)")
+        template = template.replace(old, new)
+    return template
+
+
 @functools.cache
 def _generated(paths: tuple[tuple[str, str, str], ...], state: str):
     imports = "".join(f"from {module} import {attr} as {name}\n" for name, module, attr in paths)
     stamp = hashlib.sha256((imports + state + hook_sources({m for _, m, _ in paths})).encode()).hexdigest()[:16]
-    source = Path(fused.__file__).read_text()
-    head, rest = source.split(MARK, 1)
-    rest = rest.split("\n)\n", 1)[1]                                 # the rest of the hooks' import
-    text = (f"# generated by rovermarl.env.kernel.compose from {fused.__file__}; stamp {stamp}\n"
-            + head[:head.rindex("\n") + 1] + imports + rest + state)
-    name = f"rovermarl_world_{hashlib.sha256((imports + state).encode()).hexdigest()[:12]}"
-    return load_generated(name, text)
+    body = fill(Path(fused.__file__).read_text(), fused.__file__, {HOOKS_IMPORT: imports})
+    text = f"# generated by rovermarl.env.kernel.compose from {fused.__file__}; stamp {stamp}\n" + body + state
+    where = "".join(str(_own_file(m)) for m in sorted({m for _, m, _ in paths}))   # two copies: two kernels
+    return load_generated(f"rovermarl_world_{hashlib.sha256((imports + state + where).encode()).hexdigest()[:12]}",
+                          text)
 
 
 def load_generated(name: str, text: str):
-    """The module ``name`` of source ``text``, written (if changed) into :func:`cache_root`'s ``rovermarl_worlds``
-    and imported from there (also for a compiled loop around a plug-in's kernel, ``algorithms.compiled.loop_of``)."""
-    path = cache_root() / "rovermarl_worlds" / f"{name}.py"
+    """The module ``name`` of source ``text``, written (if changed) into a folder of its own under
+    :func:`cache_root`'s ``rovermarl_worlds`` (numba's stamp of a generated module hashes its folder: nothing of
+    another world's) and imported from there (also for a compiled loop around a plug-in's kernel,
+    ``algorithms.compiled.loop_of``)."""
+    path = cache_root() / "rovermarl_worlds" / name / f"{name}.py"
     if path.resolve().is_relative_to(PACKAGE):
         raise RuntimeError(f"NUMBA_CACHE_DIR={os.environ.get('NUMBA_CACHE_DIR')} is inside rovermarl's package")
     if not path.exists() or path.read_text() != text:

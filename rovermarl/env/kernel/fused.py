@@ -218,6 +218,28 @@ def env_start(w, n_ep):
     return score_start(w, n_ep)
 
 
+@njit(cache=True)
+def trial(hook, x, y, heading, sin_h, cos_h, a0, a1, n, w, s, obs, xy, acc, returns):
+    """One call of the world's hook number ``hook`` (``Scenario.check_state``'s trial run, which checks the state
+    ``s`` between calls): 0 ``begin``, 1 ``sense``, 2 ``move``, 3 ``tick``, 4 ``stepwise``, 5 ``score_step``,
+    6 ``score_end``, on the flat layout; returns what ``sense`` or ``stepwise`` return (False for the others)."""
+    if hook == 0:
+        begin(x, y, n, w, s)
+    elif hook == 1:
+        return sense(x, y, sin_h, cos_h, n, w, s, obs)
+    elif hook == 2:
+        move(x, y, heading, sin_h, cos_h, a0, a1, w, s)
+    elif hook == 3:
+        tick(x, y, n, w, s)
+    elif hook == 4:
+        return stepwise(w)
+    elif hook == 5:
+        score_step(w, x, y, xy, acc, s)
+    else:
+        score_end(w, xy, acc, returns, s)
+    return False
+
+
 @njit(nogil=True, **FAST)
 def evaluate(genomes, xy0, heading0, fields, returns, final_xy):
     """(score, sane) of one team genomes (N, G) float64: :func:`rollout` (returns (E,), final_xy as there), then the
