@@ -23,9 +23,9 @@ sweep() {  # sweep OVERRIDE... -- EXTRA...: one multirun into OUT
     "$PYTHON" -m rovermarl.train -m "$@" "generations=$GENERATIONS" "seeds=$SEEDS" "hydra.sweep.dir=$OUT"
 }
 
-job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it
-    "$PYTHON" -c 'import sys; from rovermarl.config import dirname, quote_numeric_options
-print(dirname(quote_numeric_options(sys.argv[1:])))' "$@"
+job_name() {  # job_name OVERRIDE...: the job's dir name under OUT (and RESULTS), as rovermarl.train names it (values
+    "$PYTHON" -c 'import sys; from rovermarl.config import job_dirs, quote_numeric_options   # parsed: true -> True)
+print(job_dirs(quote_numeric_options(sys.argv[1:]), True, ".")[0].name)' "$@"
 }
 
 compact_job() {  # compact_job OVERRIDE...: one job of a resumable study, skipped if its compact files are in

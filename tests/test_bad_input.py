@@ -227,7 +227,8 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["setup.value=[-1,1,1,1,1,1,1,1,1,1]"], "setup.value[0]=-1: must be a finite number >= 0"),
     # unknown group options
     (["k=9"], "k=9: no such option; allowed: " + K_OPTIONS),
-    (["setup=quartet"], "setup=quartet: no such option; allowed: duo, solo, solo20, trio, trio6"),
+    (["setup=quartet"], "setup=quartet: no such option; allowed: coupling1, coupling2, coupling3, coupling4, "
+                        "coupling5, coupling6, duo, solo, solo20, trio, trio6"),
     (["team=mixed"], "team=mixed: no such option"),
     (["selection=lax"], "selection=lax: no such option"),
     (["parallel=dask"], "parallel=dask: no such option"),

@@ -121,3 +121,14 @@ def test_where_the_results_go(clone, script, env, overrides, expected):
     # PYTHON=false stops the launcher at its first command, after it has announced where the results go
     proc = launch(clone, script, *overrides, PYTHON="false", **env)
     assert f"results into {expected}\n" in proc.stderr, proc.stderr
+
+
+def test_job_name_is_the_dir_train_makes_for_parsed_values():
+    """A launcher skips a job by its dir name: booleans and quoted numbers are named as Hydra parses them
+    (evaluation.fresh_ic=true -> True), or the launcher relaunches a finished job every time."""
+    from rovermarl.config import job_dirs, quote_numeric_options
+    argv = ["setup=solo", "k=1", "evaluation.fresh_ic=true", "budget.agent_steps=960000", "record=off", "seeds=2"]
+    out = subprocess.run(["bash", "-c", 'source launchers/_sweep.sh; job_name "$@"', "_", *argv], cwd=ROOT,
+                         capture_output=True, text=True, env={**os.environ, "PYTHON": sys.executable}, check=True)
+    assert out.stdout.strip() == job_dirs(quote_numeric_options(argv), True, ".")[0].name
+    assert out.stdout.strip() == "budget.agent_steps=960000,evaluation.fresh_ic=True,k=1,setup=solo"

@@ -50,3 +50,18 @@ def test_summary_says_the_regime_and_the_final_team_rule(tmp_path):
     b = json.loads((tmp_path / "b" / "summary.json").read_text())
     assert (a["train_ic"], a["final_team"]) == ("fresh", "best")
     assert (b["train_ic"], b["final_team"]) == ("fixed", "last")
+
+
+def test_a_relaunch_of_a_finished_budget_job_keeps_its_saved_generations(tmp_path):
+    """Hydra rewrites .hydra/config.yaml at every launch, before budget.agent_steps sets generations (halved under
+    fresh_ic for CC-(1+1)-ES): a relaunch that finds every run finished still writes the generations the runs have,
+    so readers size the runs' files right."""
+    from omegaconf import OmegaConf
+
+    from tests.conftest import run_cli
+    args = ("setup=solo", "budget.agent_steps=96000", "evaluation.fresh_ic=true", "seeds=1", "parallel=serial",
+            "record=off", f"hydra.run.dir={tmp_path / 'job'}")
+    for _ in range(2):                                                       # the launch, then the relaunch
+        proc = run_cli(*args, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert OmegaConf.load(tmp_path / "job" / ".hydra" / "config.yaml").generations == 50   # 96000 / (2 x 960)

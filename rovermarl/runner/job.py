@@ -120,12 +120,12 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     if outcomes:
         log.info("%s: %d of %d runs already finished, skipped", name, len(outcomes), len(seeds))
     summary_path = job_dir / "summary.json"
+    _saved_generations(job_dir / ".hydra" / "config.yaml", cfg.generations)   # Hydra rewrote it: also when finished
     if not todo and summary_path.exists():
         summary = _read_summary(summary_path, name)
         if _current(summary, seeds, cfg.levels):
             return summary                                                 # else stale: rebuilt below
 
-    _saved_generations(job_dir / ".hydra" / "config.yaml", cfg.generations)
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         with atomic_open(job_dir / "config.yaml", "w") as f:
             f.write(OmegaConf.to_yaml(job))

@@ -1,0 +1,47 @@
+"""The coupling section of docs/LEARNERS.md is the committed results/coupling's (studies/coupling/report.py), and its
+drop levels are re-derived here from the summaries alone."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from tests.conftest import study_module
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "results" / "coupling"
+
+
+def test_the_doc_section_is_the_committed_results():
+    report = study_module("coupling")
+    doc = (ROOT / "docs" / "LEARNERS.md").read_text()
+    assert report.block(doc) == report.report(RESULTS)
+
+
+def test_each_drop_level_is_the_datas():
+    """half: the first level whose held-out median is below half the c = 1 median (numpy's median, by hand)."""
+    report = study_module("coupling")
+    learners = study_module("learners")
+    scores = {}
+    for job in RESULTS.iterdir():
+        if (job / "summary.json").is_file():
+            s = json.loads((job / "summary.json").read_text())
+            scores[(learners.classify(job.name)[1], s["coupling_level"])] = list(s["heldout_score"].values())
+    assert scores, "results/coupling holds no job"
+    found = report.drops(report.cells(RESULTS))
+    for learner, v in found.items():
+        base = np.median(scores[(learner, 1)])
+        want = next((c for c in range(2, 7) if (learner, c) in scores and np.median(scores[(learner, c)]) < base / 2),
+                    None)
+        assert v["half"] == want, learner
+
+
+def test_a_family_that_never_halves_is_said_to_hold(tmp_path):
+    """merl(): a family above half at every level run is named as holding, one below as falling."""
+    report = study_module("coupling")
+    base = report.stats.median_exact([1.0, 1.0, 1.0])[0]
+    d = {"ppo": {"base": base, "half": 3, "surely": None, "top": 6},
+         "cces_k1": {"base": base, "half": None, "surely": None, "top": 6}}
+    text = " ".join(report.merl(d))
+    assert "fell below half its c = 1 level for PPO (SB3) (c = 3)" in text
+    assert "stayed above half for CC-ES k=1 (to c = 6)" in text
