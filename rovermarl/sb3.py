@@ -44,7 +44,7 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, Algorithm, generator, keep_best, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, Algorithm, generator, score_iterate, train_starts
 from rovermarl.env import World
 from rovermarl.vector import DEFAULTS, VectorEnv
 
@@ -226,14 +226,10 @@ class PPO(Algorithm):
                 model._last_obs = None                     # every iteration starts on new episodes (resumable)
                 model.learn(self.n_steps * model.env.num_envs, reset_num_timesteps=False)
                 state = self._save(model, rng, env._rng.bit_generator.state, env.cursor)
-                if evaluate.fresh:
-                    evaluate.draw(generation + t + 1)
-                team = self._genomes(state["params"])
-                measured = evaluate.measure(team)
-                if best:                                   # the kept iterate against the new one, same starts
-                    team, measured = keep_best(evaluate, self.world.homogeneous(kept), score_before, team, measured)
+                team, (f, final_xy) = score_iterate(evaluate, generation + t + 1, self._genomes(state["params"]),
+                                                    self.world.homogeneous(kept) if best else None, score_before)
+                if best:
                     kept = state["best"] = team[0].copy()
-                f, final_xy = measured
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
                 score[t] = state["score"] = score_before = f
         return state, {"score": score}

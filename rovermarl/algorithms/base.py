@@ -276,6 +276,17 @@ def keep_best(evaluate: Evaluator, kept: np.ndarray, kept_score: float, team: np
     return kept, Measured(float(kept_score), None)
 
 
+def score_iterate(evaluate: Evaluator, generation: int, team: np.ndarray, kept: np.ndarray | None,
+                  kept_score: float):
+    """How a learner that steps environments itself scores its iterate ``team`` (N, P) at the end of ``generation``:
+    on that generation's starts under ``evaluation.fresh_ic``, against the ``kept`` team (N, P; None: ``last``) by
+    :func:`keep_best`. Returns ``(team, Measured)``: the run's team after the generation."""
+    if evaluate.fresh:
+        evaluate.draw(generation)
+    measured = evaluate.measure(team)
+    return (team, measured) if kept is None else keep_best(evaluate, kept, kept_score, team, measured)
+
+
 def train_starts(evaluate: Evaluator) -> InitialConditions | None:
     """The starts a learner that steps environments itself trains on, in turn: the run's own under
     ``evaluation.fresh_ic=false`` (``fixed``), None under ``fresh`` (its environments draw new ones)."""
