@@ -12,7 +12,6 @@ upper end below half the c = 1 median).
 
 from __future__ import annotations
 
-import re
 import sys
 from pathlib import Path
 
@@ -21,10 +20,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))           # the sibling study: its classification
 from learners.report import LEARNERS, classify  # noqa: E402
 
-from rovermarl.analysis import stats  # noqa: E402
+from rovermarl.analysis import sections, stats  # noqa: E402
 from rovermarl.analysis.cli import Parser, one_line_errors  # noqa: E402
 from rovermarl.analysis.results import ResultsError  # noqa: E402
-from rovermarl.record.atomic import atomic_open  # noqa: E402
 from rovermarl.record.safe_read import read_json  # noqa: E402
 
 PROG = "studies/coupling/report.py"
@@ -148,19 +146,12 @@ def figure(results: Path, formats=("png",)) -> list[Path]:
 
 def block(doc: str) -> str | None:
     """The generated section of the doc (between its markers), or None."""
-    m = re.search(re.escape(BEGIN) + r"\n(.*?)" + re.escape(END), doc, re.S)
-    return m[1] if m else None
+    return sections.block(doc, BEGIN, END)
 
 
 def write(results: Path, doc: Path) -> None:
-    """Replace the section of ``doc`` between its markers by :func:`report` and draw :func:`figure`."""
-    text = Path(doc).read_text()
-    if block(text) is None:
-        raise ResultsError(f"{doc}: no {BEGIN} ... {END} markers")
-    section = report(results)
-    with atomic_open(Path(doc), "w") as f:
-        f.write(re.sub(re.escape(BEGIN) + r"\n.*?" + re.escape(END), lambda _: f"{BEGIN}\n{section}{END}", text,
-                       flags=re.S))
+    """Replace the section of ``doc`` between its markers by :func:`report` and draw the figures."""
+    sections.replace(doc, BEGIN, END, report(results))
     figure(results)
 
 

@@ -19,17 +19,15 @@ comparisons of that row; a difference is called one only at adjusted p < 0.05.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rovermarl.analysis import stats
+from rovermarl.analysis import sections, stats
 from rovermarl.analysis.cli import Parser, one_line_errors
 from rovermarl.analysis.curves import read_exported
 from rovermarl.analysis.results import ResultsError
-from rovermarl.record.atomic import atomic_open
 from rovermarl.record.safe_read import read_json
 
 WORLDS = ("solo", "duo", "trio", "obstacles", "random_pois", "moving_pois")
@@ -234,20 +232,13 @@ def figures(results: Path, formats=("png",)) -> list[Path]:
 
 
 def block(doc: str) -> str | None:
-    """The generated section of ``docs/LEARNERS.md`` (between its markers), or None."""
-    m = re.search(re.escape(BEGIN) + r"\n(.*?)" + re.escape(END), doc, re.S)
-    return m[1] if m else None
+    """The generated section of the doc (between its markers), or None."""
+    return sections.block(doc, BEGIN, END)
 
 
 def write(results: Path, doc: Path) -> None:
-    """Replace the section of ``doc`` between its markers by :func:`report` and draw :func:`figures`."""
-    text = Path(doc).read_text()
-    if block(text) is None:
-        raise ResultsError(f"{doc}: no {BEGIN} ... {END} markers")
-    section = report(results)
-    with atomic_open(doc, "w") as f:
-        f.write(re.sub(re.escape(BEGIN) + r"\n.*?" + re.escape(END), lambda _: f"{BEGIN}\n{section}{END}", text,
-                       flags=re.S))
+    """Replace the section of ``doc`` between its markers by :func:`report` and draw the figures."""
+    sections.replace(doc, BEGIN, END, report(results))
     figures(results)
 
 
