@@ -41,7 +41,7 @@ except ModuleNotFoundError as _e:
                               'pip install -e ".[marl]"') from None
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, Algorithm, generator, score_iterate, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
 from rovermarl.vector import VectorEnv
 
 A = "agents"                                     # TorchRL's group of per-agent entries: (B, N, ...) under it
@@ -62,7 +62,7 @@ class _Actor(torch.nn.Module):
         return loc, self.log_std.exp().expand_as(loc)
 
 
-class MAPPO(Algorithm):
+class MAPPO(SharedActor):
     """Built from ``conf/algorithm/mappo.yaml`` (``ippo.yaml``: :class:`IPPO`); ``num_envs`` environments of N
     rovers. The defaults are ``algorithm=ppo``'s (SB3's PPO as this project runs it), so that the learners differ in
     their critic and library, not in their settings."""
@@ -96,8 +96,6 @@ class MAPPO(Algorithm):
         if not self.value_hidden or len(set(self.value_hidden)) != 1:
             raise errors.ConfigError("value_hidden", list(value_hidden), "must be one width, one or more times "
                                      "(e.g. [64, 64]: MultiAgentMLP's depth x num_cells)")
-
-    fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
 
     # ---- the budget --------------------------------------------------------------------------------------------
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
@@ -144,12 +142,7 @@ class MAPPO(Algorithm):
         with _Torch(_torch_state(seed)) as rng:
             loss = self._loss()
             state = self._save(loss, None, rng.state(), np.random.default_rng(streams.mutation).bit_generator.state)
-        team = self._genomes(state["params"])
-        measured = evaluate.measure(team)
-        state["score"] = measured.score
-        if self.final_team == "best":
-            state["best"] = team[0].copy()                 # the kept iterate's genome (P,)
-        return state, measured
+        return state, self._first(state, evaluate)
 
     def _genomes(self, p) -> np.ndarray:
         """The team (N, P) of an iterate's parameters: N copies of its deterministic actor."""
@@ -157,28 +150,19 @@ class MAPPO(Algorithm):
         genome = policy.flatten(p[m + "0.weight"].T, p[m + "0.bias"], p[m + "2.weight"].T, p[m + "2.bias"])
         return self.world.homogeneous(genome)
 
-    def _team(self, state):
-        if self.final_team == "best":
-            return self.world.homogeneous(np.asarray(state["best"], dtype=np.float64))
-        return self._genomes(state["params"])
-
     def _advance(self, state, generation, n, evaluate, observer):
-        score, score_before = np.empty(n), float(state["score"])
-        best = self.final_team == "best"
+        score, score_before, best = np.empty(n), float(state["score"]), state.get("best")
         env = VectorEnv(self.num_envs, world=self.world, time_feature=True, starts=train_starts(evaluate))
         with _Torch(state["torch"]) as rng:
             loss = self._loss()                          # its initial weights are replaced below
             rng.restore(state["torch"])
             opt = self._load(loss, state)
             env._rng, env.cursor = generator(state["env_rng"]), int(state.get("cursor", 0))
-            kept = np.asarray(state["best"], dtype=np.float64) if best else None
             for t in range(n):
                 self._iteration(loss, opt, env)
                 state = self._save(loss, opt, rng.state(), env._rng.bit_generator.state, env.cursor)
-                team, (f, final_xy) = score_iterate(evaluate, generation + t + 1, self._genomes(state["params"]),
-                                                    self.world.homogeneous(kept) if best else None, score_before)
-                if best:
-                    kept = state["best"] = team[0].copy()
+                team, (f, final_xy) = self._scored(state, best, evaluate, generation + t + 1, score_before)
+                best = state.get("best")
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
                 score[t] = state["score"] = score_before = f
         return state, {"score": score}

@@ -44,7 +44,7 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, Algorithm, generator, score_iterate, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
 from rovermarl.env import World
 from rovermarl.vector import DEFAULTS, VectorEnv
 
@@ -137,7 +137,7 @@ class GenomePolicy(ActorCriticPolicy):
         self.action_net = torch.nn.Sequential(self.action_net, torch.nn.Tanh())   # its parameters: the optimiser's
 
 
-class PPO(Algorithm):
+class PPO(SharedActor):
     """Built from ``conf/algorithm/ppo.yaml`` (SB3's PPO arguments; ``num_envs`` environments of N rovers)."""
 
     def __init__(self, world, num_envs: int = 256, n_steps: int = 15, batch_size: int = 1920, n_epochs: int = 5,
@@ -163,8 +163,6 @@ class PPO(Algorithm):
         self.policy_kwargs = {"net_arch": {"pi": [world.policy.hidden], "vf": [int(h) for h in value_hidden]},
                               "activation_fn": torch.nn.Tanh,
                               "log_std_init": errors.number("log_std_init", log_std_init)}
-
-    fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         """One iteration's steps in team evaluations (``num_envs * n_steps`` environment steps of N agents)."""
@@ -194,12 +192,7 @@ class PPO(Algorithm):
             state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
                                cursor=0)
         state["numpy"] = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
-        team = self._genomes(state["params"])
-        measured = evaluate.measure(team)
-        state["score"] = measured.score
-        if self.final_team == "best":
-            state["best"] = team[0].copy()                 # the kept iterate's genome (P,)
-        return state, measured
+        return state, self._first(state, evaluate)
 
     def _genomes(self, p) -> np.ndarray:
         """The team (N, P) of an iterate's parameters: N copies of its deterministic actor."""
@@ -207,18 +200,11 @@ class PPO(Algorithm):
                                 p["action_net.0.weight"].T, p["action_net.0.bias"])
         return self.world.homogeneous(genome)
 
-    def _team(self, state):
-        if self.final_team == "best":
-            return self.world.homogeneous(np.asarray(state["best"], dtype=np.float64))
-        return self._genomes(state["params"])
-
     def _advance(self, state, generation, n, evaluate, observer):
-        score, score_before = np.empty(n), float(state["score"])
-        best = self.final_team == "best"
+        score, score_before, best = np.empty(n), float(state["score"]), state.get("best")
         with _Rng({"torch": torch.get_rng_state().numpy(), "numpy": None}):
             model = self._model(train_starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
         with _Rng(state) as rng:
-            kept = np.asarray(state["best"], dtype=np.float64) if best else None
             self._load(model, state)
             env = model.env.env
             env._rng, env.cursor = generator(state["env_rng"]), int(state.get("cursor", 0))
@@ -226,10 +212,8 @@ class PPO(Algorithm):
                 model._last_obs = None                     # every iteration starts on new episodes (resumable)
                 model.learn(self.n_steps * model.env.num_envs, reset_num_timesteps=False)
                 state = self._save(model, rng, env._rng.bit_generator.state, env.cursor)
-                team, (f, final_xy) = score_iterate(evaluate, generation + t + 1, self._genomes(state["params"]),
-                                                    self.world.homogeneous(kept) if best else None, score_before)
-                if best:
-                    kept = state["best"] = team[0].copy()
+                team, (f, final_xy) = self._scored(state, best, evaluate, generation + t + 1, score_before)
+                best = state.get("best")
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
                 score[t] = state["score"] = score_before = f
         return state, {"score": score}

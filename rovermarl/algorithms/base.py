@@ -264,6 +264,46 @@ class Algorithm:
 FINAL_TEAMS = ("last", "best")
 
 
+class SharedActor(Algorithm):
+    """A learner whose team is N copies of one actor's deterministic policy, which it trains by stepping
+    environments itself (PPO, MAPPO, IPPO): the final-team rule over its iterates. A subclass sets
+    :attr:`final_team` (one of :data:`FINAL_TEAMS`) and gives ``_genomes(params) -> (N, P)``; the kept iterate's
+    genome (P,) is ``state["best"]`` under ``best``."""
+
+    fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
+
+    def _genomes(self, params) -> np.ndarray:
+        raise NotImplementedError
+
+    def _first(self, state: dict, evaluate: Evaluator) -> Measured:
+        """Score the first iterate; ``state`` gets its ``score`` (and ``best``)."""
+        team = self._genomes(state["params"])
+        measured = evaluate.measure(team)
+        state["score"] = measured.score
+        if self.final_team == "best":
+            state["best"] = team[0].copy()
+        return measured
+
+    def _kept(self, state: dict) -> np.ndarray | None:
+        """The kept team (N, P) under ``best``, else None."""
+        return self.world.homogeneous(np.asarray(state["best"], dtype=np.float64)) if self.final_team == "best" \
+            else None
+
+    def _team(self, state):
+        kept = self._kept(state)
+        return self._genomes(state["params"]) if kept is None else kept
+
+    def _scored(self, state: dict, best, evaluate: Evaluator, generation: int, kept_score: float):
+        """Score the new iterate in ``state`` (its ``params``) at the end of ``generation`` against the kept one,
+        whose genome (P,) is ``best`` (None under ``last``) and score ``kept_score`` (:func:`score_iterate`);
+        ``state["best"]`` becomes the genome kept. Returns ``(team, Measured)``."""
+        kept = None if best is None else self.world.homogeneous(np.asarray(best, dtype=np.float64))
+        team, measured = score_iterate(evaluate, generation, self._genomes(state["params"]), kept, kept_score)
+        if kept is not None:
+            state["best"] = team[0].copy()
+        return team, measured
+
+
 def keep_best(evaluate: Evaluator, kept: np.ndarray, kept_score: float, team: np.ndarray, measured: Measured):
     """The final-team rule ``best``, its one source: the new ``team`` (N, P) scored ``measured`` replaces the ``kept``
     one (N, P) when it scores at least as well on the same initial conditions (under ``evaluation.fresh_ic`` the kept
