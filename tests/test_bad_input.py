@@ -246,7 +246,7 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["+record.colour=red"], "record.colour=red: unknown key"),
     (["+ray.num_gpus=1"], "ray.num_gpus=1: unknown key; allowed: address, num_cpus"),
     (["+policy.layers=2"], "policy.layers=2: unknown key; allowed: hidden, init_high, init_low"),
-    (["+setup.colour=red"], "setup.colour=red: unknown key; allowed: coupling, name, value"),
+    (["+setup.colour=red"], "setup.colour=red: unknown key; allowed: coupling, coupling_level, name, value"),
     (["k.arms=[0]"], "k.arms=[0]: unknown key"),  # a fixed k has no arms
     # missing keys
     (["~setup.coupling"], "setup.coupling=None: missing"),

@@ -57,7 +57,8 @@ def validate(cfg: DictConfig) -> None:
     errors.integer("parallel.chunk", par.get("chunk"), 1)
     errors.integer("parallel.retries", par.get("retries", 0), 0)
     episodes = cfg.env.get("episodes")                   # a shard of no episode would have nothing to score
-    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1, episodes if isinstance(episodes, int) else None)
+    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1,       # (env.episodes < 1: its own line later)
+                   episodes if isinstance(episodes, int) and episodes >= 1 else None)
     if par.get("stall_timeout") is not None:
         errors.number("parallel.stall_timeout", par.stall_timeout, 0, lo_open=True)
     if par.get("workers") is not None:
