@@ -2,7 +2,8 @@
 
 Rovers take matplotlib's ``tab10`` cycle (rover ``i`` is ``C{i % 10}``); POIs are coloured by coupling, in hues
 that no rover of a shipped world uses (coupling 2's purple is C4, but no world with five or more rovers has
-coupling-2 POIs), so a POI is never mistaken for a rover. The Rerun plots add the score, series and occupancy
+coupling-2 POIs; three or more: a yellow outside the cycle, for the coupling family's 6-12 rovers), so a POI is never
+mistaken for a rover. The Rerun plots add the score, series and occupancy
 colours below.
 
 >>> rover_hex(1), poi_hex(2)
@@ -16,7 +17,7 @@ import numpy as np
 TAB10 = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f", "#bcbd22",
          "#17becf")
 POI_BY_COUPLING = {1: "#bcbd22", 2: "#9467bd"}   # tab:olive: one rover needed; tab:purple: two
-POI_OTHER = "#17becf"                              # tab:cyan: three or more (brown is rover 5 of six)
+POI_OTHER = "#f0e442"                              # yellow (Okabe-Ito), in no rover's cycle: three or more
 OCCUPANCY = {1: "tab:red", 2: "tab:blue"}          # the paper's Fig. 6: POI observed by one rover, by two
 OCCUPANCY_CMAP = "viridis"                         # mean rovers at a POI, 0 (dark) .. max (yellow)
 SCORE = "#009e73"                                  # team score in the Rerun plots (legible on light and dark themes)

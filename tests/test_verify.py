@@ -61,13 +61,18 @@ def test_a_doctored_genomes_file_is_one_line(job):
     assert proc.returncode == 2 and "has shape" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
 
 
-def test_a_plugin_worlds_job_re_scores_only_when_trusted():
-    """A world plug-in's committed job (the learners study's D++ on random_pois): refused in one line that names the
-    flag to pass, which verify takes; with it every team re-scores on its episodes' own POIs."""
-    job = ROOT / "results/learners/algorithm.reward=dpp,algorithm=ccea,budget.agent_steps=19200000,env=random_pois"
+def test_a_plugin_worlds_job_re_scores_only_when_trusted(tmp_path):
+    """A world plug-in's job (D++ on random_pois, made here): refused in one line that names the flag to pass, which
+    verify takes; with it every team re-scores on its episodes' own POIs."""
+    from tests.conftest import run_cli
+    job = tmp_path / "job"
+    made = run_cli("env=random_pois", f"hydra.searchpath=[file://{ROOT}/examples/random_pois]", "algorithm=ccea",
+                   "algorithm.reward=dpp", "generations=3", "seeds=2", "parallel=serial", "record=off",
+                   f"hydra.run.dir={job}", timeout=600)
+    assert made.returncode == 0, made.stderr[-2000:]
     refused = _cli(job)
     assert refused.returncode == 2 and "pass --trust-config" in refused.stderr
     assert len(refused.stderr.strip().splitlines()) == 1
     proc = _cli("--trust-config", job)
     assert proc.returncode == 0, proc.stderr
-    assert proc.stdout.splitlines() == [f"ok  {job.name}: 8 teams re-score: final scores 8/8, held-out 8/8 equal"]
+    assert proc.stdout.splitlines() == [f"ok  {job.name}: 2 teams re-score: final scores 2/2, held-out 2/2 equal"]
