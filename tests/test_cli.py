@@ -106,8 +106,12 @@ def test_more_workers_than_ray_cpus_completes_capped(tmp_path):
 def test_too_many_ic_shards_are_refused_before_ray_starts():
     import psutil
     before = {p.pid for p in psutil.process_iter() if p.name() in ("raylet", "gcs_server")}
-    proc = run_cli("parallel.ic_shards=1000", "ray.num_cpus=2", "generations=10")
+    proc = run_cli("parallel.ic_shards=10", "ray.num_cpus=2", "generations=10")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "rovermarl.train: error: parallel.ic_shards=1000: must be at most the 2 CPUs of Ray"]
+        "rovermarl.train: error: parallel.ic_shards=10: must be at most the 2 CPUs of Ray"]
+    proc = run_cli("parallel.ic_shards=1000", "ray.num_cpus=2", "generations=10")      # a shard of no episode
+    assert proc.returncode == 2
+    assert proc.stderr.strip().splitlines() == [
+        "rovermarl.train: error: parallel.ic_shards=1000: must be an integer in 1..16"]
     assert {p.pid for p in psutil.process_iter() if p.name() in ("raylet", "gcs_server")} <= before
