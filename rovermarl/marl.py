@@ -42,6 +42,7 @@ except ModuleNotFoundError as _e:
 
 from rovermarl import errors, policy
 from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
+from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 
 A = "agents"                                     # TorchRL's group of per-agent entries: (B, N, ...) under it
@@ -139,7 +140,7 @@ class MAPPO(SharedActor):
     # ---- the contract ------------------------------------------------------------------------------------------
     def _init(self, streams, evaluate):
         seed = int(np.random.default_rng(streams.algorithm).integers(0, 2**63))
-        with _Torch(_torch_state(seed)) as rng:
+        with _Torch(seeded(seed)) as rng:
             loss = self._loss()
             state = self._save(loss, None, rng.state(), np.random.default_rng(streams.mutation).bit_generator.state)
         return state, self._first(state, evaluate)
@@ -210,13 +211,7 @@ class MAPPO(SharedActor):
     # ---- the state as arrays -----------------------------------------------------------------------------------
     def _save(self, loss, opt, torch_state, env_rng, cursor: int = 0) -> dict:
         named = self._named(loss)
-        adam = {}
-        for name, param in named.items():
-            s = opt.state.get(param) if opt is not None else None
-            adam[name] = ({"m": s["exp_avg"].numpy().copy(), "v": s["exp_avg_sq"].numpy().copy(),
-                           "step": float(s["step"])} if s else
-                          {"m": np.zeros(tuple(param.shape), np.float32), "v": np.zeros(tuple(param.shape), np.float32),
-                           "step": 0.0})
+        adam = adam_arrays(named, opt.state if opt is not None else {})
         return {"params": {k: v.detach().numpy().copy() for k, v in named.items()}, "adam": adam,
                 "torch": torch_state, "env_rng": env_rng, "cursor": int(cursor), "score": 0.0}
 
@@ -229,12 +224,7 @@ class MAPPO(SharedActor):
             for name, param in named.items():
                 param.copy_(torch.from_numpy(np.array(state["params"][name])))
         opt = torch.optim.Adam(list(named.values()), lr=self.lr, eps=1e-5)
-        for name, param in named.items():
-            a = state["adam"][name]
-            if a["step"] > 0:
-                opt.state[param] = {"step": torch.tensor(float(a["step"])),
-                                    "exp_avg": torch.from_numpy(np.array(a["m"])),
-                                    "exp_avg_sq": torch.from_numpy(np.array(a["v"]))}
+        load_adam(named, opt.state, state["adam"])
         return opt
 
 
@@ -250,15 +240,6 @@ def _agents(obs: np.ndarray, b: int, n: int) -> TensorDict:
     ``sensors`` (B, N, D) (the actor's)."""
     o = torch.from_numpy(np.asarray(obs, np.float32))
     return TensorDict({"observation": o, "sensors": o[..., :-1]}, batch_size=[b, n])
-
-
-def _torch_state(seed: int) -> np.ndarray:
-    """The torch CPU generator's state after seeding it with ``seed`` (uint8 array), the caller's state untouched."""
-    keep = torch.get_rng_state()
-    torch.manual_seed(seed)
-    out = torch.get_rng_state().numpy().copy()
-    torch.set_rng_state(keep)
-    return out
 
 
 class _Torch:

@@ -46,6 +46,7 @@ import gymnasium
 from rovermarl import errors, policy
 from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
 from rovermarl.env import World
+from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import DEFAULTS, VectorEnv
 
 
@@ -187,7 +188,7 @@ class PPO(SharedActor):
 
     def _init(self, streams, evaluate):
         seeds = np.random.default_rng(streams.algorithm).integers(0, 2**63, 2)
-        with _Rng({"torch": _torch_state(int(seeds[0])), "numpy": None}) as rng:
+        with _Rng({"torch": seeded(int(seeds[0])), "numpy": None}) as rng:
             model = self._model(train_starts(evaluate))
             state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
                                cursor=0)
@@ -221,13 +222,7 @@ class PPO(SharedActor):
     def _save(self, model, rng, env_rng, cursor: int) -> dict:
         opt = model.policy.optimizer.state
         names = [name for name, _ in model.policy.named_parameters()]
-        adam = {}
-        for name, param in model.policy.named_parameters():
-            s = opt.get(param)
-            adam[name] = ({"m": s["exp_avg"].numpy().copy(), "v": s["exp_avg_sq"].numpy().copy(),
-                           "step": float(s["step"])} if s else
-                          {"m": np.zeros(tuple(param.shape), np.float32), "v": np.zeros(tuple(param.shape), np.float32),
-                           "step": 0.0})
+        adam = adam_arrays(dict(model.policy.named_parameters()), opt)
         params = {k: v.detach().numpy().copy() for k, v in model.policy.state_dict().items()}
         assert list(adam) == names
         return {"params": params, "adam": adam, "torch": rng.state()["torch"], "numpy": rng.state()["numpy"],
@@ -235,23 +230,8 @@ class PPO(SharedActor):
 
     def _load(self, model, state) -> None:
         model.policy.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state["params"].items()})
-        opt = model.policy.optimizer
-        for name, param in model.policy.named_parameters():
-            a = state["adam"][name]
-            if a["step"] > 0:
-                opt.state[param] = {"step": torch.tensor(float(a["step"])),
-                                    "exp_avg": torch.from_numpy(np.array(a["m"])),
-                                    "exp_avg_sq": torch.from_numpy(np.array(a["v"]))}
+        load_adam(dict(model.policy.named_parameters()), model.policy.optimizer.state, state["adam"])
         model.num_timesteps = int(state["timesteps"])
-
-
-def _torch_state(seed: int) -> np.ndarray:
-    """The torch CPU generator's state after seeding it with ``seed`` (uint8 array), the caller's state untouched."""
-    keep = torch.get_rng_state()
-    torch.manual_seed(seed)
-    out = torch.get_rng_state().numpy().copy()
-    torch.set_rng_state(keep)
-    return out
 
 
 class _Rng:
