@@ -21,7 +21,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))           # the sib
 from learners.report import LEARNERS, classify  # noqa: E402
 
 from rovermarl.analysis import sections, stats  # noqa: E402
-from rovermarl.analysis.cli import Parser, one_line_errors  # noqa: E402
+from rovermarl.analysis.cli import section_main  # noqa: E402
 from rovermarl.analysis.results import ResultsError  # noqa: E402
 from rovermarl.record.safe_read import read_json  # noqa: E402
 
@@ -156,12 +156,7 @@ def write(results: Path, doc: Path) -> None:
 
 
 def main(argv=None) -> None:
-    p = Parser(prog=PROG, description="The coupling study: docs/LEARNERS.md's coupling section and its figure.")
-    p.add_argument("results", type=Path, help="results/coupling")
-    p.add_argument("--doc", type=Path, default=Path("docs/LEARNERS.md"), help="the doc whose section is replaced")
-    args = p.parse_args(argv)
-    with one_line_errors(PROG):
-        write(args.results, args.doc)
+    section_main(PROG, __doc__.splitlines()[0], "results/coupling", write, argv)
 
 
 if __name__ == "__main__":

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from rovermarl.analysis import sections, stats
-from rovermarl.analysis.cli import Parser, one_line_errors
+from rovermarl.analysis.cli import section_main
 from rovermarl.analysis.curves import read_exported
 from rovermarl.analysis.results import ResultsError
 from rovermarl.record.safe_read import read_json
@@ -243,12 +243,7 @@ def write(results: Path, doc: Path) -> None:
 
 
 def main(argv=None) -> None:
-    p = Parser(prog=PROG, description="The learners study: docs/LEARNERS.md's section and one figure per world.")
-    p.add_argument("results", type=Path, help="results/learners")
-    p.add_argument("--doc", type=Path, default=Path("docs/LEARNERS.md"), help="the doc whose section is replaced")
-    args = p.parse_args(argv)
-    with one_line_errors(PROG):
-        write(args.results, args.doc)
+    section_main(PROG, __doc__.splitlines()[0], "results/learners", write, argv)
 
 
 if __name__ == "__main__":
