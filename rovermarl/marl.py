@@ -27,6 +27,8 @@ from new ones; ``final_team`` is ``last`` or ``best`` (:func:`rovermarl.algorith
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 try:
@@ -41,7 +43,7 @@ except ModuleNotFoundError as _e:
                               'pip install -e ".[marl]"') from None
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, State, generator, train_starts
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 
@@ -63,10 +65,26 @@ class _Actor(torch.nn.Module):
         return loc, self.log_std.exp().expand_as(loc)
 
 
+@dataclass(kw_only=True)
+class MARLState(State):
+    """The iterate's actor and critic ``params`` (by torchrl's names) and Adam's moments ``adam``, as arrays; the
+    torch RNG state ``torch``; the environments' bit-generator state ``env_rng`` and ``cursor`` (the next of the
+    run's starts, under fixed starts); the kept genome ``best`` (P,) under ``final_team=best``, else None."""
+
+    params: dict
+    adam: dict
+    torch: np.ndarray
+    env_rng: dict
+    cursor: int = 0
+    best: np.ndarray | None = None
+
+
 class MAPPO(SharedActor):
     """Built from ``conf/algorithm/mappo.yaml`` (``ippo.yaml``: :class:`IPPO`); ``num_envs`` environments of N
     rovers. The defaults are ``algorithm=ppo``'s (SB3's PPO as this project runs it), so that the learners differ in
     their critic and library, not in their settings."""
+
+    State = MARLState
 
     centralised = True
 
@@ -152,20 +170,20 @@ class MAPPO(SharedActor):
         return self.world.homogeneous(genome)
 
     def _advance(self, state, generation, n, evaluate, observer):
-        score, score_before, best = np.empty(n), float(state["score"]), state.get("best")
+        score, score_before, best = np.empty(n), float(state.score), state.best
         env = VectorEnv(self.num_envs, world=self.world, time_feature=True, starts=train_starts(evaluate))
-        with _Torch(state["torch"]) as rng:
+        with _Torch(state.torch) as rng:
             loss = self._loss()                          # its initial weights are replaced below
-            rng.restore(state["torch"])
+            rng.restore(state.torch)
             opt = self._load(loss, state)
-            env._rng, env.cursor = generator(state["env_rng"]), int(state.get("cursor", 0))
+            env._rng, env.cursor = generator(state.env_rng), int(state.cursor)
             for t in range(n):
                 self._iteration(loss, opt, env)
                 state = self._save(loss, opt, rng.state(), env._rng.bit_generator.state, env.cursor)
                 team, (f, final_xy) = self._scored(state, best, evaluate, generation + t + 1, score_before)
-                best = state.get("best")
+                best = state.best
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
-                score[t] = state["score"] = score_before = f
+                score[t] = state.score = score_before = f
         return state, {"score": score}
 
     # ---- one iteration -----------------------------------------------------------------------------------------
@@ -209,22 +227,22 @@ class MAPPO(SharedActor):
         return torch.stack(steps, dim=1)
 
     # ---- the state as arrays -----------------------------------------------------------------------------------
-    def _save(self, loss, opt, torch_state, env_rng, cursor: int = 0) -> dict:
+    def _save(self, loss, opt, torch_state, env_rng, cursor: int = 0) -> MARLState:
         named = self._named(loss)
         adam = adam_arrays(named, opt.state if opt is not None else {})
-        return {"params": {k: v.detach().numpy().copy() for k, v in named.items()}, "adam": adam,
-                "torch": torch_state, "env_rng": env_rng, "cursor": int(cursor), "score": 0.0}
+        return MARLState(params={k: v.detach().numpy().copy() for k, v in named.items()}, adam=adam,
+                         torch=torch_state, env_rng=env_rng, cursor=int(cursor), score=0.0)
 
     def _load(self, loss, state) -> torch.optim.Adam:
         named = self._named(loss)
-        if set(named) != set(state["params"]):
+        if set(named) != set(state.params):
             raise errors.ConfigError("algorithm", type(self).__name__, "the checkpoint's networks are not this "
                                      "configuration's (another torchrl version or other settings)")
         with torch.no_grad():
             for name, param in named.items():
-                param.copy_(torch.from_numpy(np.array(state["params"][name])))
+                param.copy_(torch.from_numpy(np.array(state.params[name])))
         opt = torch.optim.Adam(list(named.values()), lr=self.lr, eps=1e-5)
-        load_adam(named, opt.state, state["adam"])
+        load_adam(named, opt.state, state.adam)
         return opt
 
 

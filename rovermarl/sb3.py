@@ -31,6 +31,8 @@ random states, and each iteration starts on fresh episodes (``n_steps`` is a mul
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 try:
@@ -44,7 +46,7 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, generator, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, State, generator, train_starts
 from rovermarl.env import World
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import DEFAULTS, VectorEnv
@@ -138,8 +140,27 @@ class GenomePolicy(ActorCriticPolicy):
         self.action_net = torch.nn.Sequential(self.action_net, torch.nn.Tanh())   # its parameters: the optimiser's
 
 
+@dataclass(kw_only=True)
+class PPOState(State):
+    """The iterate's ``params`` (SB3's policy state_dict as arrays) and Adam's moments ``adam``; the torch and numpy-
+    global RNG states SB3 draws from (``torch``, ``numpy``); the environments' bit-generator state ``env_rng`` and
+    ``cursor`` (the next of the run's starts, under fixed starts); SB3's ``timesteps``; the kept genome ``best`` (P,)
+    under ``final_team=best``, else None."""
+
+    params: dict
+    adam: dict
+    torch: np.ndarray
+    numpy: dict | None
+    env_rng: dict
+    cursor: int = 0
+    timesteps: int
+    best: np.ndarray | None = None
+
+
 class PPO(SharedActor):
     """Built from ``conf/algorithm/ppo.yaml`` (SB3's PPO arguments; ``num_envs`` environments of N rovers)."""
+
+    State = PPOState
 
     def __init__(self, world, num_envs: int = 256, n_steps: int = 15, batch_size: int = 1920, n_epochs: int = 5,
                  learning_rate: float = 3e-4, gamma: float = 0.99, gae_lambda: float = 0.95, clip_range: float = 0.2,
@@ -188,11 +209,11 @@ class PPO(SharedActor):
 
     def _init(self, streams, evaluate):
         seeds = np.random.default_rng(streams.algorithm).integers(0, 2**63, 2)
-        with _Rng({"torch": seeded(int(seeds[0])), "numpy": None}) as rng:
+        with _Rng(seeded(int(seeds[0])), None) as rng:
             model = self._model(train_starts(evaluate))
             state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
                                cursor=0)
-        state["numpy"] = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
+        state.numpy = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
         return state, self._first(state, evaluate)
 
     def _genomes(self, p) -> np.ndarray:
@@ -202,50 +223,50 @@ class PPO(SharedActor):
         return self.world.homogeneous(genome)
 
     def _advance(self, state, generation, n, evaluate, observer):
-        score, score_before, best = np.empty(n), float(state["score"]), state.get("best")
-        with _Rng({"torch": torch.get_rng_state().numpy(), "numpy": None}):
+        score, score_before, best = np.empty(n), float(state.score), state.best
+        with _Rng(torch.get_rng_state().numpy(), None):
             model = self._model(train_starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
-        with _Rng(state) as rng:
+        with _Rng(state.torch, state.numpy) as rng:
             self._load(model, state)
             env = model.env.env
-            env._rng, env.cursor = generator(state["env_rng"]), int(state.get("cursor", 0))
+            env._rng, env.cursor = generator(state.env_rng), int(state.cursor)
             for t in range(n):
                 model._last_obs = None                     # every iteration starts on new episodes (resumable)
                 model.learn(self.n_steps * model.env.num_envs, reset_num_timesteps=False)
                 state = self._save(model, rng, env._rng.bit_generator.state, env.cursor)
                 team, (f, final_xy) = self._scored(state, best, evaluate, generation + t + 1, score_before)
-                best = state.get("best")
+                best = state.best
                 observer.accepted(generation + t + 1, team, f, f != score_before, final_xy)
-                score[t] = state["score"] = score_before = f
+                score[t] = state.score = score_before = f
         return state, {"score": score}
 
-    def _save(self, model, rng, env_rng, cursor: int) -> dict:
+    def _save(self, model, rng, env_rng, cursor: int) -> PPOState:
         opt = model.policy.optimizer.state
         names = [name for name, _ in model.policy.named_parameters()]
         adam = adam_arrays(dict(model.policy.named_parameters()), opt)
         params = {k: v.detach().numpy().copy() for k, v in model.policy.state_dict().items()}
         assert list(adam) == names
-        return {"params": params, "adam": adam, "torch": rng.state()["torch"], "numpy": rng.state()["numpy"],
-                "env_rng": env_rng, "cursor": int(cursor), "score": 0.0, "timesteps": int(model.num_timesteps)}
+        return PPOState(params=params, adam=adam, torch=rng.state()["torch"], numpy=rng.state()["numpy"],
+                        env_rng=env_rng, cursor=int(cursor), score=0.0, timesteps=int(model.num_timesteps))
 
     def _load(self, model, state) -> None:
-        model.policy.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state["params"].items()})
-        load_adam(dict(model.policy.named_parameters()), model.policy.optimizer.state, state["adam"])
-        model.num_timesteps = int(state["timesteps"])
+        model.policy.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.params.items()})
+        load_adam(dict(model.policy.named_parameters()), model.policy.optimizer.state, state.adam)
+        model.num_timesteps = int(state.timesteps)
 
 
 class _Rng:
     """The run's torch and numpy-global random states in force inside the block (SB3 draws from both), the caller's
     restored after; one torch thread (the run's process has its core; results bit-identical)."""
 
-    def __init__(self, state: dict):
-        self.run = state
+    def __init__(self, torch_state: np.ndarray, numpy_state: dict | None):
+        self.run = torch_state, numpy_state
 
     def __enter__(self):
         self.keep = (torch.get_rng_state(), np.random.get_state(legacy=False), torch.get_num_threads())  # noqa: NPY002 - SB3 shuffles with it
-        torch.set_rng_state(torch.from_numpy(np.array(self.run["torch"], dtype=np.uint8)))
-        if self.run.get("numpy") is not None:
-            np.random.set_state(self.run["numpy"])  # noqa: NPY002 - SB3 shuffles with it
+        torch.set_rng_state(torch.from_numpy(np.array(self.run[0], dtype=np.uint8)))
+        if self.run[1] is not None:
+            np.random.set_state(self.run[1])  # noqa: NPY002 - SB3 shuffles with it
         torch.set_num_threads(1)
         return self
 

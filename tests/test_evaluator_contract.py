@@ -2,18 +2,28 @@
 in the runner, an evaluator written against it alone runs the paper's algorithm, and the observer is told final
 positions explicitly (no float carrying data)."""
 
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
-from rovermarl.algorithms import Algorithm, AlgorithmError, Evaluator, Measured, RunStreams, Series
+from rovermarl.algorithms import Algorithm, AlgorithmError, Evaluator, Measured, RunStreams, Series, State
 from rovermarl.env import Rollout
 from rovermarl.runner.chunk import Evaluation, Run, to_plain
 from tests.conftest import make_cfg
 
 
+@dataclass(kw_only=True)
+class ContractState(State):
+    team: np.ndarray
+    rng: dict
+
+
 class ContractSearch(Algorithm):
     """A plug-in that uses every part of the contract: the named streams, measure (score and positions) for the
     team it keeps, score for a probe, rollout for trajectories, and the observer's explicit positions."""
+
+    State = ContractState
 
     def __init__(self, world):
         super().__init__(world)
@@ -23,16 +33,16 @@ class ContractSearch(Algorithm):
     def _init(self, streams: RunStreams, evaluate: Evaluator):
         team = np.random.default_rng(streams.algorithm).uniform(-2, 2, (self.world.n_rovers, self.world.n_params))
         measured = evaluate.measure(team)
-        return {"team": team, "score": measured.score,
-                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
+        return ContractState(team=team, score=measured.score,
+                             rng=np.random.default_rng(streams.mutation).bit_generator.state), measured
 
     def _team(self, state):
-        return state["team"]
+        return state.team
 
     def _advance(self, state, generation, n, evaluate: Evaluator, observer):
         rng = np.random.default_rng()
-        rng.bit_generator.state = state["rng"]
-        team, f = state["team"], float(state["score"])
+        rng.bit_generator.state = state.rng
+        team, f = state.team, float(state.score)
         out = {"score": np.empty(n), "probe": np.empty(n), "switched": np.empty(n, np.int16)}
         for t in range(n):
             child = team + rng.normal(0, 0.3, team.shape)
@@ -49,7 +59,7 @@ class ContractSearch(Algorithm):
                 observer.accepted(generation + t + 1, child, measured.score, measured.score != f, measured.final_xy)
                 team, f = child, measured.score
             out["score"][t] = f
-        return {"team": team, "score": f, "rng": rng.bit_generator.state}, out
+        return ContractState(team=team, score=f, rng=rng.bit_generator.state), out
 
 
 def test_a_plugin_written_against_the_contract_runs():

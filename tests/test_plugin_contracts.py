@@ -112,3 +112,28 @@ def test_the_observer_refuses_a_team_without_its_final_positions_in_one_line():
     assert "\n" not in str(e.value)
     with pytest.raises(AlgorithmError):
         obs.evaluated(np.array([True, False, False, False]), None)
+
+
+class Undeclared(Algorithm):
+    """Returns its state as a plain dict: no declared State type."""
+
+    def _init(self, streams, evaluate):
+        return {"score": 0.0}, 0.0
+
+
+def test_a_state_not_of_the_declared_type_is_refused_in_one_line():
+    from rovermarl.algorithms.base import AlgorithmError
+    from rovermarl.env.streams import RunStreams
+
+    with pytest.raises(AlgorithmError) as e:
+        Undeclared(make_world("solo")).init(RunStreams(0), None)
+    assert "\n" not in str(e.value) and "Undeclared._init gave a dict" in str(e.value) and "State" in str(e.value)
+
+
+def test_a_state_of_other_fields_is_refused_naming_them():
+    from rovermarl.algorithms.cc11es import CC11ESState
+
+    good = {"score": 1.0, "parents": np.zeros((4, 3)), "rng_mut": {}, "rng_sel": {}, "selector": {}}
+    assert CC11ESState.from_dict(good).as_dict().keys() == good.keys()
+    with pytest.raises(ValueError, match=r"has no field extra; lacks selector$"):
+        CC11ESState.from_dict({**{k: v for k, v in good.items() if k != "selector"}, "extra": 1})

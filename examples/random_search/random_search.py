@@ -14,14 +14,27 @@ Run it from the repository root (``python -m`` puts the current directory on the
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms import Algorithm, Series
+from rovermarl.algorithms import Algorithm, Series, State
+
+
+@dataclass(kw_only=True)
+class SearchState(State):
+    """The run's state: ``team`` (N, P), its ``score``, and ``rng`` (the bit-generator state of the mutation
+    stream)."""
+
+    team: np.ndarray
+    rng: dict
 
 
 class RandomSearch(Algorithm):
-    """State: ``team`` (N, P), its ``score``, and ``rng`` (the bit-generator state of the mutation stream)."""
+    """Built from ``random_search.yaml``; its run state is :class:`SearchState`."""
+
+    State = SearchState
 
     def __init__(self, world, lam: int = 4, sigma: float = 0.1, init_low: float = -2.0, init_high: float = 2.0):
         super().__init__(world)
@@ -38,16 +51,16 @@ class RandomSearch(Algorithm):
         shape = (self.world.n_rovers, self.world.n_params)
         team = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, shape)
         measured = evaluate.measure(team)                           # the score, and what the observer reads
-        return {"team": team, "score": measured.score,
-                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
+        return SearchState(team=team, score=measured.score,
+                           rng=np.random.default_rng(streams.mutation).bit_generator.state), measured
 
     def _team(self, state):
-        return state["team"]
+        return state.team
 
     def _advance(self, state, generation, n, evaluate, observer):
         rng = np.random.Generator(np.random.PCG64())
-        rng.bit_generator.state = state["rng"]
-        team, score = state["team"], float(state["score"])
+        rng.bit_generator.state = state.rng
+        team, score = state.team, float(state.score)
         best_child, after = np.empty(n), np.empty(n)
         for t in range(n):
             children = team + rng.normal(0.0, self.sigma, (self.lam, *team.shape))   # (lam, N, P)
@@ -59,5 +72,5 @@ class RandomSearch(Algorithm):
                                   measured[best].final_xy)
                 team, score = children[best], float(scores[best])
             best_child[t], after[t] = scores[best], score
-        return {"team": team, "score": score, "rng": rng.bit_generator.state}, {"score": after,
+        return SearchState(team=team, score=score, rng=rng.bit_generator.state), {"score": after,
                                                                                   "best_child": best_child}

@@ -9,8 +9,9 @@ from rovermarl.algorithms.base import (
     NullObserver,
     Observer,
     Series,
+    State,
 )
 from rovermarl.env.streams import RunStreams
 
 __all__ = ["Algorithm", "AlgorithmError", "Evaluator", "KernelInputs", "Measured", "NullObserver", "Observer",
-           "RunStreams", "Series"]
+           "RunStreams", "Series", "State"]

@@ -1,8 +1,9 @@
 """The algorithm plug-in contract.
 
 An algorithm is one class plus one yaml in ``conf/algorithm/``. Hydra builds it from its config node with the
-world as a keyword (``instantiate(cfg.algorithm, world=world)``). It holds no run state: a run's state is an
-explicit plain dict (arrays, numbers, nested dicts, RNG states) that :meth:`Algorithm.init` creates and
+world as a keyword (``instantiate(cfg.algorithm, world=world)``). It holds no run state: a run's state is a
+declared type, a dataclass subclass of :class:`State` named by :attr:`Algorithm.State` (its fields: arrays, numbers,
+strings, None, plain dicts of those such as RNG states), that :meth:`Algorithm.init` creates and
 :meth:`Algorithm.advance` threads through, so the runner can checkpoint it, ship it to another process and resume
 bit-identically. Randomness comes only from the run's named streams (:class:`~rovermarl.env.streams.RunStreams`) the
 runner hands to :meth:`Algorithm.init`.
@@ -32,8 +33,8 @@ Example (a run of 3 generations, in the runner's words)::
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from dataclasses import MISSING, dataclass, fields
+from typing import ClassVar, NamedTuple, Protocol
 
 import numpy as np
 
@@ -168,6 +169,31 @@ RESERVED_PREFIXES = ("behaviour_", "occupancy_")
 LOOPS = ("auto", "python", "compiled")   # algorithm.loop: which generation loop runs (an algorithm with one)
 
 
+@dataclass(kw_only=True)
+class State:
+    """A run's state: what :meth:`Algorithm.init` returns and :meth:`Algorithm.advance` threads through. An algorithm
+    declares its own as a dataclass subclass (``@dataclass(kw_only=True)``) and names it :attr:`Algorithm.State`;
+    ``score`` is the score of the run's team (:meth:`Algorithm.score`)."""
+
+    score: float
+
+    def as_dict(self) -> dict:
+        """The fields by name (not copied): the form a checkpoint and a chunk hold."""
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> State:
+        """The state of :meth:`as_dict` ``d``; ValueError (one line) if its keys are not this type's fields."""
+        names = {f.name for f in fields(cls)}
+        needed = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
+        extra, missing = sorted(set(d) - names), sorted(needed - set(d))
+        if extra or missing:
+            raise ValueError(f"a {cls.__qualname__} has fields {', '.join(sorted(names))}; this state "
+                             + "; ".join(w for w in (extra and f"has no field {', '.join(extra)}" or "",
+                                                     missing and f"lacks {', '.join(missing)}" or "") if w))
+        return cls(**d)
+
+
 class AlgorithmError(Exception):
     """A run cannot continue because of a plug-in's behaviour; the message is one line naming the plug-in."""
 
@@ -181,6 +207,7 @@ class Algorithm:
     ``evaluation.fresh_ic=true`` for the others.
     """
 
+    State: ClassVar[type[State]] = State     # the run state's declared type (a subclass names its own)
     series: tuple[Series, ...] = ()
     fresh_ic: bool = False
     final_team: str = "best"      # the run's team: the best kept so far (elitist), or "last": the last iterate
@@ -189,33 +216,42 @@ class Algorithm:
         self.world = world
 
     # ---- public API ------------------------------------------------------------------------------------------
-    def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[dict, Measured]:
+    def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[State, Measured]:
         """A fresh run's state and its initial team's score with its final positions (``_init`` may return the
         :class:`Measured` ``evaluate`` gave, or a float: then no positions). ``streams`` are the run's named random
         streams (its ``algorithm``, ``mutation`` and ``selector`` ones are the algorithm's)."""
         state, score = self._init(streams, evaluate)
-        return state, score if isinstance(score, Measured) else Measured(float(score), None)
+        return self._declared(state, "_init"), score if isinstance(score, Measured) else Measured(float(score), None)
 
-    def advance(self, state: dict, generation: int, n: int, evaluate: Evaluator,
-                observer: Observer) -> tuple[dict, dict[str, np.ndarray]]:
+    def advance(self, state: State, generation: int, n: int, evaluate: Evaluator,
+                observer: Observer) -> tuple[State, dict[str, np.ndarray]]:
         """Advance ``state`` (at ``generation``) by ``n`` generations.
 
         Returns the new state and the arrays of those generations: ``score`` (n,) after each one, and every
         declared :attr:`series` (n, *shape).
         """
-        state, arrays = self._advance(state, generation, n, evaluate, observer)
+        state, arrays = self._advance(self._declared(state, "advance's argument"), generation, n, evaluate,
+                                      observer)
+        self._declared(state, "_advance")
         missing = {"score", *(s.name for s in self.series)} - set(arrays)
         if missing:
             raise AlgorithmError(f"{type(self).__name__}.advance returned no {', '.join(sorted(missing))}")
         return state, arrays
 
-    def team(self, state: dict) -> np.ndarray:
+    def _declared(self, state, where: str) -> State:
+        """``state`` if it is of :attr:`State`, else :class:`AlgorithmError` naming ``where`` it came from."""
+        if not isinstance(state, self.State):
+            raise AlgorithmError(f"{type(self).__name__}.{where} gave a {type(state).__name__}, not its declared "
+                                 f"state type {self.State.__qualname__} (Algorithm.State)")
+        return state
+
+    def team(self, state: State) -> np.ndarray:
         """The team of ``state`` as the world sees it: genomes (N, P)."""
         return self._team(state)
 
-    def score(self, state: dict) -> float:
+    def score(self, state: State) -> float:
         """The score of :meth:`team`."""
-        return float(state["score"])
+        return float(state.score)
 
     def check_series(self) -> None:
         """Raise :class:`~rovermarl.errors.ConfigError` (one line) if a declared series takes a name the run's files
@@ -268,39 +304,39 @@ class SharedActor(Algorithm):
     """A learner whose team is N copies of one actor's deterministic policy, which it trains by stepping
     environments itself (PPO, MAPPO, IPPO): the final-team rule over its iterates. A subclass sets
     :attr:`final_team` (one of :data:`FINAL_TEAMS`) and gives ``_genomes(params) -> (N, P)``; the kept iterate's
-    genome (P,) is ``state["best"]`` under ``best``."""
+    genome (P,) is ``state.best`` under ``best``."""
 
     fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
 
     def _genomes(self, params) -> np.ndarray:
         raise NotImplementedError
 
-    def _first(self, state: dict, evaluate: Evaluator) -> Measured:
+    def _first(self, state: State, evaluate: Evaluator) -> Measured:
         """Score the first iterate; ``state`` gets its ``score`` (and ``best``)."""
-        team = self._genomes(state["params"])
+        team = self._genomes(state.params)
         measured = evaluate.measure(team)
-        state["score"] = measured.score
+        state.score = measured.score
         if self.final_team == "best":
-            state["best"] = team[0].copy()
+            state.best = team[0].copy()
         return measured
 
-    def _kept(self, state: dict) -> np.ndarray | None:
+    def _kept(self, state: State) -> np.ndarray | None:
         """The kept team (N, P) under ``best``, else None."""
-        return self.world.homogeneous(np.asarray(state["best"], dtype=np.float64)) if self.final_team == "best" \
+        return self.world.homogeneous(np.asarray(state.best, dtype=np.float64)) if self.final_team == "best" \
             else None
 
     def _team(self, state):
         kept = self._kept(state)
-        return self._genomes(state["params"]) if kept is None else kept
+        return self._genomes(state.params) if kept is None else kept
 
-    def _scored(self, state: dict, best, evaluate: Evaluator, generation: int, kept_score: float):
+    def _scored(self, state: State, best, evaluate: Evaluator, generation: int, kept_score: float):
         """Score the new iterate in ``state`` (its ``params``) at the end of ``generation`` against the kept one,
         whose genome (P,) is ``best`` (None under ``last``) and score ``kept_score`` (:func:`score_iterate`);
-        ``state["best"]`` becomes the genome kept. Returns ``(team, Measured)``."""
+        ``state.best`` becomes the genome kept. Returns ``(team, Measured)``."""
         kept = None if best is None else self.world.homogeneous(np.asarray(best, dtype=np.float64))
-        team, measured = score_iterate(evaluate, generation, self._genomes(state["params"]), kept, kept_score)
+        team, measured = score_iterate(evaluate, generation, self._genomes(state.params), kept, kept_score)
         if kept is not None:
-            state["best"] = team[0].copy()
+            state.best = team[0].copy()
         return team, measured
 
 
@@ -345,7 +381,7 @@ BIT_GENERATORS = {c.__name__: c for c in (np.random.PCG64, np.random.PCG64DXSM, 
 
 def generator(state: dict) -> np.random.Generator:
     """A generator continuing from a bit-generator ``state`` (of one of numpy's :data:`BIT_GENERATORS`): how a
-    run's RNG streams live in its plain-dict state. The name in ``state`` only picks from those classes: a name
+    run's RNG streams live in its state. The name in ``state`` only picks from those classes: a name
     from a file is never looked up as a function."""
     name = state.get("bit_generator") if isinstance(state, dict) else None
     if not isinstance(name, str) or name not in BIT_GENERATORS:

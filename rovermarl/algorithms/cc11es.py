@@ -4,9 +4,7 @@ all k children or none, on the team's shared score.
 Its operators are config groups of their own: ``k`` (fixed or a k-selector such as EXP3), ``team``
 (heterogeneous or homogeneous), ``mutation`` and ``selection`` (soft or strict).
 
-Run state (a plain dict): ``parents`` (M, P) (M = N, or 1 for a homogeneous team), ``score`` (the parents' F),
-the bit-generator states ``rng_mut`` (which rovers, which changes: the run's ``mutation`` stream) and ``rng_sel`` (the
-selector's draws: its ``selector`` stream), and the selector's ``state_dict``.
+Run state: :class:`CC11ESState`.
 
 ``loop`` (``algorithm.loop``) chooses the generation loop: ``python`` runs :meth:`CC11ES._advance`'s steps 1-7 below,
 ``compiled`` the same steps in numba (:mod:`rovermarl.algorithms.compiled`, bit-identical; refused in one line where
@@ -16,12 +14,25 @@ it does not apply), ``auto`` (the default) the compiled one wherever it applies.
 from __future__ import annotations
 
 import copy
+from dataclasses import dataclass
 
 import numpy as np
 
 from rovermarl import errors
 from rovermarl.algorithms import compiled
-from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, Series, build_operator, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, Series, State, build_operator, generator
+
+
+@dataclass(kw_only=True)
+class CC11ESState(State):
+    """``parents`` (M, P) (M = N, or 1 for a homogeneous team) scored ``score``; the bit-generator states
+    ``rng_mut`` (which rovers, which changes: the run's ``mutation`` stream) and ``rng_sel`` (the selector's draws:
+    its ``selector`` stream); the selector's ``state_dict``."""
+
+    parents: np.ndarray
+    rng_mut: dict
+    rng_sel: dict
+    selector: dict
 
 
 class CC11ES(Algorithm):
@@ -32,6 +43,7 @@ class CC11ES(Algorithm):
     conditions, so selection compares the two on one draw; ``score`` is then the kept team's F on that draw.
     """
 
+    State = CC11ESState
     fresh_ic = True
 
     def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0,
@@ -74,13 +86,13 @@ class CC11ES(Algorithm):
         parents = self.composition.init(self.world.n_params, self.low, self.high,
                                         np.random.default_rng(streams.algorithm))
         measured = evaluate.measure(self.composition.genomes(parents))
-        return {"parents": parents, "score": measured.score,
-                "rng_mut": np.random.default_rng(streams.mutation).bit_generator.state,
-                "rng_sel": np.random.default_rng(streams.selector).bit_generator.state,
-                "selector": copy.deepcopy(self.selector).state_dict()}, measured
+        return CC11ESState(parents=parents, score=measured.score,
+                           rng_mut=np.random.default_rng(streams.mutation).bit_generator.state,
+                           rng_sel=np.random.default_rng(streams.selector).bit_generator.state,
+                           selector=copy.deepcopy(self.selector).state_dict()), measured
 
     def _team(self, state):
-        return self.composition.genomes(state["parents"])
+        return self.composition.genomes(state.parents)
 
     def _advance(self, state, generation, n, evaluate, observer):
         if self.loop != "python":
@@ -117,16 +129,16 @@ class CC11ES(Algorithm):
         ``rng_mut`` and ``rng_sel``, the parents (M, P) and their score, and the arrays of ``n`` generations (the
         score and the declared series)."""
         selector = copy.deepcopy(self.selector)
-        selector.load_state_dict(state["selector"])
-        return (selector, generator(state["rng_mut"]), generator(state["rng_sel"]),
-                np.array(state["parents"], dtype=np.float64), float(state["score"]),
+        selector.load_state_dict(state.selector)
+        return (selector, generator(state.rng_mut), generator(state.rng_sel),
+                np.array(state.parents, dtype=np.float64), float(state.score),
                 {"score": np.empty(n), **{s.name: s.empty(n) for s in self.series}})
 
     @staticmethod
-    def _state(parents, score, rng_mut, rng_sel, selector) -> dict:
-        """The run state after a chunk (see the module doc)."""
-        return {"parents": parents, "score": score, "rng_mut": rng_mut.bit_generator.state,
-                "rng_sel": rng_sel.bit_generator.state, "selector": selector.state_dict()}
+    def _state(parents, score, rng_mut, rng_sel, selector) -> CC11ESState:
+        """The run state after a chunk."""
+        return CC11ESState(parents=parents, score=score, rng_mut=rng_mut.bit_generator.state,
+                           rng_sel=rng_sel.bit_generator.state, selector=selector.state_dict())
 
     def _check(self, k, selector) -> int:
         """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""

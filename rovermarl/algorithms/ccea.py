@@ -20,18 +20,32 @@ A generation therefore costs ``pop_size + 1`` team evaluations (``+ 1`` for ``be
 ``team_evals`` series counts them (the initial team's included) so that curves can be compared at equal evaluations.
 The default ``pop_size`` of 10 is the AADI code's usual population for rover teams of this size.
 
-Run state (a plain dict): ``pops`` (N, pop_size, P), ``score`` (the run's team's F), ``best`` (the best score so
-far: the behaviour observer logs new bests), ``evals`` (team evaluations so far), the bit-generator state ``rng``
-and, for ``best``, the kept team ``kept`` (N, P).
+Run state: :class:`CCEAState`.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import FINAL_TEAMS, LOOPS, Algorithm, Series, build_operator, generator, keep_best
+from rovermarl.algorithms.base import FINAL_TEAMS, LOOPS, Algorithm, Series, State, build_operator, generator, keep_best
 from rovermarl.algorithms.credit import CREDITS, credit
+
+
+@dataclass(kw_only=True)
+class CCEAState(State):
+    """``pops`` (N, pop_size, P): each rover's population; ``score``: the run's team's F (the elites', or the kept
+    team's under ``final_team=best``, whose genomes (N, P) are ``kept``, else None); ``best``: the best F so far (the
+    behaviour observer logs new bests); ``evals``: team evaluations so far; ``rng``: the ``mutation`` stream's
+    bit-generator state."""
+
+    pops: np.ndarray
+    best: float
+    evals: int
+    rng: dict
+    kept: np.ndarray | None = None
 
 
 class CCEA(Algorithm):
@@ -60,6 +74,7 @@ class CCEA(Algorithm):
         )
 
     fresh_ic = True
+    State = CCEAState
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return self.pop_size + 1.0 + (fresh_ic and self.final_team == "best")
@@ -68,22 +83,20 @@ class CCEA(Algorithm):
         size = (self.world.n_rovers, self.pop_size, self.world.n_params)
         pops = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, size)
         measured = evaluate.measure(_elites(pops))
-        state = {"pops": pops, "score": measured.score, "best": measured.score, "evals": 1,
-                 "rng": np.random.default_rng(streams.mutation).bit_generator.state}
-        if self.final_team == "best":
-            state["kept"] = _elites(pops)
-        return state, measured
+        return CCEAState(pops=pops, score=measured.score, best=measured.score, evals=1,
+                         rng=np.random.default_rng(streams.mutation).bit_generator.state,
+                         kept=_elites(pops) if self.final_team == "best" else None), measured
 
     def _team(self, state):
-        return np.ascontiguousarray(state["kept"]) if self.final_team == "best" else _elites(state["pops"])
+        return np.ascontiguousarray(state.kept) if self.final_team == "best" else _elites(state.pops)
 
     def _advance(self, state, generation, n, evaluate, observer):
-        rng = generator(state["rng"])
-        pops, best, evals = np.array(state["pops"], dtype=np.float64), float(state["best"]), int(state["evals"])
+        rng = generator(state.rng)
+        pops, best, evals = np.array(state.pops, dtype=np.float64), float(state.best), int(state.evals)
         keep = self.final_team == "best"
-        kept = np.array(state["kept"], dtype=np.float64) if keep else None
+        kept = np.array(state.kept, dtype=np.float64) if keep else None
         score, h = np.empty(n), {s.name: s.empty(n) for s in self.series}
-        f_kept = float(state["score"])
+        f_kept = float(state.score)
         for t in range(n):
             if evaluate.fresh:
                 evaluate.draw(generation + t + 1)                                           # SPEC section 8
@@ -100,11 +113,8 @@ class CCEA(Algorithm):
             observer.accepted(generation + t + 1, team, f, f > best, final_xy)
             best = max(best, f)
             score[t], h["team_evals"][t] = f, evals
-        state = {"pops": pops, "score": score[-1] if n else state["score"], "best": best, "evals": evals,
-                 "rng": rng.bit_generator.state}
-        if keep:
-            state["kept"] = kept
-        return state, {"score": score, **h}
+        return CCEAState(pops=pops, score=score[-1] if n else state.score, best=best, evals=evals,
+                         rng=rng.bit_generator.state, kept=kept), {"score": score, **h}
 
     def _fitness(self, pops, teams, evaluate) -> np.ndarray:
         """Each member's credit (N, pop_size) from the teams (N, pop_size): team j is member ``teams[r, j]`` of

@@ -20,18 +20,35 @@ Under ``evaluation.fresh_ic`` (SPEC section 8) each generation draws its own ini
 there and the kept best sample again beside it (one evaluation more); a sample replaces it when it scores at least as
 well there (as CC-(1+1)-ES re-scores its parents).
 
-Run state (a plain dict): ``mean``, ``diag``, ``ps``, ``pc`` (n,), ``sigma``, ``gen``, ``best`` (N, P), ``score``,
-``evals`` and the bit-generator state ``rng``.
+Run state: :class:`SepCMAState`.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, Series, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, Series, State, generator
+
+
+@dataclass(kw_only=True)
+class SepCMAState(State):
+    """The search distribution: ``mean``, ``diag`` (the diagonal covariance), the paths ``ps`` and ``pc`` (all
+    (N*P,)), the step size ``sigma``, the generation ``gen``; the best team so far ``best`` (N, P), scored
+    ``score``; ``evals``: team evaluations so far; ``rng``: the ``mutation`` stream's bit-generator state."""
+
+    mean: np.ndarray
+    diag: np.ndarray
+    ps: np.ndarray
+    pc: np.ndarray
+    sigma: float
+    gen: int
+    best: np.ndarray
+    evals: int
+    rng: dict
 
 
 class SepCMA(Algorithm):
@@ -67,6 +84,7 @@ class SepCMA(Algorithm):
         )
 
     fresh_ic = True
+    State = SepCMAState
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return float(self.lam + fresh_ic)
@@ -76,19 +94,19 @@ class SepCMA(Algorithm):
         mean = np.random.default_rng(streams.algorithm).uniform(self.low, self.high, n)
         best = mean.reshape(self.world.n_rovers, self.world.n_params).copy()
         measured = evaluate.measure(best)
-        return {"mean": mean, "diag": np.ones(n), "ps": np.zeros(n), "pc": np.zeros(n), "sigma": self.sigma0,
-                "gen": 0, "best": best, "score": measured.score, "evals": 1,
-                "rng": np.random.default_rng(streams.mutation).bit_generator.state}, measured
+        return SepCMAState(mean=mean, diag=np.ones(n), ps=np.zeros(n), pc=np.zeros(n), sigma=self.sigma0, gen=0,
+                           best=best, score=measured.score, evals=1,
+                           rng=np.random.default_rng(streams.mutation).bit_generator.state), measured
 
     def _team(self, state):
-        return np.ascontiguousarray(state["best"])
+        return np.ascontiguousarray(state.best)
 
     def _advance(self, state, generation, n_gen, evaluate, observer):
-        rng = generator(state["rng"])
-        mean, diag = np.array(state["mean"], dtype=np.float64), np.array(state["diag"], dtype=np.float64)
-        ps, pc = np.array(state["ps"], dtype=np.float64), np.array(state["pc"], dtype=np.float64)
-        sigma, gen, evals = float(state["sigma"]), int(state["gen"]), int(state["evals"])
-        best, best_score = np.array(state["best"], dtype=np.float64), float(state["score"])
+        rng = generator(state.rng)
+        mean, diag = np.array(state.mean, dtype=np.float64), np.array(state.diag, dtype=np.float64)
+        ps, pc = np.array(state.ps, dtype=np.float64), np.array(state.pc, dtype=np.float64)
+        sigma, gen, evals = float(state.sigma), int(state.gen), int(state.evals)
+        best, best_score = np.array(state.best, dtype=np.float64), float(state.score)
         score, h = np.empty(n_gen), {s.name: s.empty(n_gen) for s in self.series}
         shape, mu = (self.lam, self.world.n_rovers, self.world.n_params), self.lam // 2
         for t in range(n_gen):
@@ -117,6 +135,5 @@ class SepCMA(Algorithm):
                     + self.cmu * (self.weights @ (y[order[:mu]] ** 2)))
             sigma *= math.exp(self.cs / self.damps * (norm / self.chin - 1))
             score[t], h["team_evals"][t], h["sigma"][t] = best_score, evals, sigma
-        state = {"mean": mean, "diag": diag, "ps": ps, "pc": pc, "sigma": sigma, "gen": gen, "best": best,
-                 "score": best_score, "evals": evals, "rng": rng.bit_generator.state}
-        return state, {"score": score, **h}
+        return SepCMAState(mean=mean, diag=diag, ps=ps, pc=pc, sigma=sigma, gen=gen, best=best, score=best_score,
+                           evals=evals, rng=rng.bit_generator.state), {"score": score, **h}

@@ -173,7 +173,8 @@ class Run:
             self.initial_score = initial.score
             self.observer.start(self.team, initial.score, initial.final_xy)
         else:
-            self.generation, self.algo_state = int(state["generation"]), state["algorithm"]
+            self.generation = int(state["generation"])
+            self.algo_state = p.algorithm.State.from_dict(state["algorithm"])
             self.initial_score = None
             self.observer.load_state_dict(state["observer"], self.team, self.score)
 
@@ -207,7 +208,8 @@ class Run:
 
     def state(self) -> dict:
         """What the next generation depends on (plain arrays, numbers and dicts)."""
-        return {"generation": self.generation, "algorithm": self.algo_state, "observer": self.observer.state_dict()}
+        return {"generation": self.generation, "algorithm": self.algo_state.as_dict(),
+                "observer": self.observer.state_dict()}
 
 
 def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: EvaluationFactory = Evaluation) -> dict:
