@@ -43,7 +43,7 @@ except ModuleNotFoundError as _e:
                               'pip install -e ".[marl]"') from None
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, State, generator, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, RunState, SharedActor, generator, train_starts
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 
@@ -66,7 +66,7 @@ class _Actor(torch.nn.Module):
 
 
 @dataclass(kw_only=True)
-class MARLState(State):
+class MARLState(RunState):
     """The iterate's actor and critic ``params`` (by torchrl's names) and Adam's moments ``adam``, as arrays; the
     torch RNG state ``torch``; the environments' bit-generator state ``env_rng`` and ``cursor`` (the next of the
     run's starts, under fixed starts); the kept genome ``best`` (P,) under ``final_team=best``, else None."""
@@ -84,7 +84,7 @@ class MAPPO(SharedActor):
     rovers. The defaults are ``algorithm=ppo``'s (SB3's PPO as this project runs it), so that the learners differ in
     their critic and library, not in their settings."""
 
-    State = MARLState
+    state_type = MARLState
 
     centralised = True
 

@@ -46,7 +46,7 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, SharedActor, State, generator, train_starts
+from rovermarl.algorithms.base import FINAL_TEAMS, RunState, SharedActor, generator, train_starts
 from rovermarl.env import World
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import DEFAULTS, VectorEnv
@@ -141,7 +141,7 @@ class GenomePolicy(ActorCriticPolicy):
 
 
 @dataclass(kw_only=True)
-class PPOState(State):
+class PPOState(RunState):
     """The iterate's ``params`` (SB3's policy state_dict as arrays) and Adam's moments ``adam``; the torch and numpy-
     global RNG states SB3 draws from (``torch``, ``numpy``); the environments' bit-generator state ``env_rng`` and
     ``cursor`` (the next of the run's starts, under fixed starts); SB3's ``timesteps``; the kept genome ``best`` (P,)
@@ -160,7 +160,7 @@ class PPOState(State):
 class PPO(SharedActor):
     """Built from ``conf/algorithm/ppo.yaml`` (SB3's PPO arguments; ``num_envs`` environments of N rovers)."""
 
-    State = PPOState
+    state_type = PPOState
 
     def __init__(self, world, num_envs: int = 256, n_steps: int = 15, batch_size: int = 1920, n_epochs: int = 5,
                  learning_rate: float = 3e-4, gamma: float = 0.99, gae_lambda: float = 0.95, clip_range: float = 0.2,

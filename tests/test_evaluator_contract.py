@@ -7,14 +7,14 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from rovermarl.algorithms import Algorithm, AlgorithmError, Evaluator, Measured, RunStreams, Series, State
+from rovermarl.algorithms import Algorithm, AlgorithmError, Evaluator, Measured, RunState, RunStreams, Series
 from rovermarl.env import Rollout
 from rovermarl.runner.chunk import Evaluation, Run, to_plain
 from tests.conftest import make_cfg
 
 
 @dataclass(kw_only=True)
-class ContractState(State):
+class ContractState(RunState):
     team: np.ndarray
     rng: dict
 
@@ -23,7 +23,7 @@ class ContractSearch(Algorithm):
     """A plug-in that uses every part of the contract: the named streams, measure (score and positions) for the
     team it keeps, score for a probe, rollout for trajectories, and the observer's explicit positions."""
 
-    State = ContractState
+    state_type = ContractState
 
     def __init__(self, world):
         super().__init__(world)

@@ -40,7 +40,7 @@ def test_it_trains_resumes_bit_identically_and_its_team_is_its_actor(name):
     assert not np.array_equal(first["state"]["algorithm"]["params"][log_std], want["params"][log_std])   # it learns
     algo = parts(plain).algorithm
     loss = algo._loss()
-    algo._load(loss, algo.State.from_dict(want))
+    algo._load(loss, algo.state_type.from_dict(want))
     world = make_world("duo")
     obs = np.random.default_rng(0).uniform(0, 1, (8, 4, world.obs_dim + 1))              # sensors, t / T
     loc, _ = loss.actor_network.module[0].module(TensorDict({A: _agents(obs, 8, 4)}, batch_size=[8])[A, "sensors"])

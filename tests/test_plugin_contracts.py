@@ -115,7 +115,7 @@ def test_the_observer_refuses_a_team_without_its_final_positions_in_one_line():
 
 
 class Undeclared(Algorithm):
-    """Returns its state as a plain dict: no declared State type."""
+    """Returns its state as a plain dict: no declared RunState type."""
 
     def _init(self, streams, evaluate):
         return {"score": 0.0}, 0.0
@@ -127,7 +127,7 @@ def test_a_state_not_of_the_declared_type_is_refused_in_one_line():
 
     with pytest.raises(AlgorithmError) as e:
         Undeclared(make_world("solo")).init(RunStreams(0), None)
-    assert "\n" not in str(e.value) and "Undeclared._init gave a dict" in str(e.value) and "State" in str(e.value)
+    assert "\n" not in str(e.value) and "Undeclared._init gave a dict" in str(e.value) and "RunState" in str(e.value)
 
 
 def test_a_state_of_other_fields_is_refused_naming_them():

@@ -46,7 +46,7 @@ def test_ppo_resumes_bit_identically_and_its_team_is_its_deterministic_policy():
     assert not np.array_equal(first["state"]["algorithm"]["params"]["log_std"], want["params"]["log_std"])
     algo = parts(plain).algorithm
     model = algo._model()
-    algo._load(model, algo.State.from_dict(want))
+    algo._load(model, algo.state_type.from_dict(want))
     world = make_world("solo")
     obs = np.random.default_rng(0).uniform(0, 1, (8, world.obs_dim + 1)).astype(np.float32)   # sensors, t / T
     mean = model.policy.predict(obs, deterministic=True)[0]

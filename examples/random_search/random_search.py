@@ -19,11 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms import Algorithm, Series, State
+from rovermarl.algorithms import Algorithm, RunState, Series
 
 
 @dataclass(kw_only=True)
-class SearchState(State):
+class SearchState(RunState):
     """The run's state: ``team`` (N, P), its ``score``, and ``rng`` (the bit-generator state of the mutation
     stream)."""
 
@@ -34,7 +34,7 @@ class SearchState(State):
 class RandomSearch(Algorithm):
     """Built from ``random_search.yaml``; its run state is :class:`SearchState`."""
 
-    State = SearchState
+    state_type = SearchState
 
     def __init__(self, world, lam: int = 4, sigma: float = 0.1, init_low: float = -2.0, init_high: float = 2.0):
         super().__init__(world)

@@ -8,10 +8,10 @@ from rovermarl.algorithms.base import (
     Measured,
     NullObserver,
     Observer,
+    RunState,
     Series,
-    State,
 )
 from rovermarl.env.streams import RunStreams
 
 __all__ = ["Algorithm", "AlgorithmError", "Evaluator", "KernelInputs", "Measured", "NullObserver", "Observer",
-           "RunStreams", "Series", "State"]
+           "RunStreams", "Series", "RunState"]

@@ -2,8 +2,8 @@
 
 An algorithm is one class plus one yaml in ``conf/algorithm/``. Hydra builds it from its config node with the
 world as a keyword (``instantiate(cfg.algorithm, world=world)``). It holds no run state: a run's state is a
-declared type, a dataclass subclass of :class:`State` named by :attr:`Algorithm.State` (its fields: arrays, numbers,
-strings, None, plain dicts of those such as RNG states), that :meth:`Algorithm.init` creates and
+declared type, a dataclass subclass of :class:`RunState` named by :attr:`Algorithm.state_type` (its fields: arrays,
+numbers, strings, None, plain dicts of those such as RNG states), that :meth:`Algorithm.init` creates and
 :meth:`Algorithm.advance` threads through, so the runner can checkpoint it, ship it to another process and resume
 bit-identically. Randomness comes only from the run's named streams (:class:`~rovermarl.env.streams.RunStreams`) the
 runner hands to :meth:`Algorithm.init`.
@@ -170,9 +170,9 @@ LOOPS = ("auto", "python", "compiled")   # algorithm.loop: which generation loop
 
 
 @dataclass(kw_only=True)
-class State:
+class RunState:
     """A run's state: what :meth:`Algorithm.init` returns and :meth:`Algorithm.advance` threads through. An algorithm
-    declares its own as a dataclass subclass (``@dataclass(kw_only=True)``) and names it :attr:`Algorithm.State`;
+    declares its own as a dataclass subclass (``@dataclass(kw_only=True)``) and names it :attr:`Algorithm.state_type`;
     ``score`` is the score of the run's team (:meth:`Algorithm.score`)."""
 
     score: float
@@ -182,7 +182,7 @@ class State:
         return {f.name: getattr(self, f.name) for f in fields(self)}
 
     @classmethod
-    def from_dict(cls, d: dict) -> State:
+    def from_dict(cls, d: dict) -> RunState:
         """The state of :meth:`as_dict` ``d``; ValueError (one line) if its keys are not this type's fields."""
         names = {f.name for f in fields(cls)}
         needed = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
@@ -207,7 +207,7 @@ class Algorithm:
     ``evaluation.fresh_ic=true`` for the others.
     """
 
-    State: ClassVar[type[State]] = State     # the run state's declared type (a subclass names its own)
+    state_type: ClassVar[type[RunState]] = RunState   # the run state's declared type (a subclass names its own)
     series: tuple[Series, ...] = ()
     fresh_ic: bool = False
     final_team: str = "best"      # the run's team: the best kept so far (elitist), or "last": the last iterate
@@ -216,15 +216,15 @@ class Algorithm:
         self.world = world
 
     # ---- public API ------------------------------------------------------------------------------------------
-    def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[State, Measured]:
+    def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[RunState, Measured]:
         """A fresh run's state and its initial team's score with its final positions (``_init`` may return the
         :class:`Measured` ``evaluate`` gave, or a float: then no positions). ``streams`` are the run's named random
         streams (its ``algorithm``, ``mutation`` and ``selector`` ones are the algorithm's)."""
         state, score = self._init(streams, evaluate)
         return self._declared(state, "_init"), score if isinstance(score, Measured) else Measured(float(score), None)
 
-    def advance(self, state: State, generation: int, n: int, evaluate: Evaluator,
-                observer: Observer) -> tuple[State, dict[str, np.ndarray]]:
+    def advance(self, state: RunState, generation: int, n: int, evaluate: Evaluator,
+                observer: Observer) -> tuple[RunState, dict[str, np.ndarray]]:
         """Advance ``state`` (at ``generation``) by ``n`` generations.
 
         Returns the new state and the arrays of those generations: ``score`` (n,) after each one, and every
@@ -238,18 +238,18 @@ class Algorithm:
             raise AlgorithmError(f"{type(self).__name__}.advance returned no {', '.join(sorted(missing))}")
         return state, arrays
 
-    def _declared(self, state, where: str) -> State:
-        """``state`` if it is of :attr:`State`, else :class:`AlgorithmError` naming ``where`` it came from."""
-        if not isinstance(state, self.State):
+    def _declared(self, state, where: str) -> RunState:
+        """``state`` if it is of :attr:`state_type`, else :class:`AlgorithmError` naming ``where`` it came from."""
+        if not isinstance(state, self.state_type):
             raise AlgorithmError(f"{type(self).__name__}.{where} gave a {type(state).__name__}, not its declared "
-                                 f"state type {self.State.__qualname__} (Algorithm.State)")
+                                 f"state type {self.state_type.__qualname__} (Algorithm.state_type)")
         return state
 
-    def team(self, state: State) -> np.ndarray:
+    def team(self, state: RunState) -> np.ndarray:
         """The team of ``state`` as the world sees it: genomes (N, P)."""
         return self._team(state)
 
-    def score(self, state: State) -> float:
+    def score(self, state: RunState) -> float:
         """The score of :meth:`team`."""
         return float(state.score)
 
@@ -311,7 +311,7 @@ class SharedActor(Algorithm):
     def _genomes(self, params) -> np.ndarray:
         raise NotImplementedError
 
-    def _first(self, state: State, evaluate: Evaluator) -> Measured:
+    def _first(self, state: RunState, evaluate: Evaluator) -> Measured:
         """Score the first iterate; ``state`` gets its ``score`` (and ``best``)."""
         team = self._genomes(state.params)
         measured = evaluate.measure(team)
@@ -320,7 +320,7 @@ class SharedActor(Algorithm):
             state.best = team[0].copy()
         return measured
 
-    def _kept(self, state: State) -> np.ndarray | None:
+    def _kept(self, state: RunState) -> np.ndarray | None:
         """The kept team (N, P) under ``best``, else None."""
         return self.world.homogeneous(np.asarray(state.best, dtype=np.float64)) if self.final_team == "best" \
             else None
@@ -329,7 +329,7 @@ class SharedActor(Algorithm):
         kept = self._kept(state)
         return self._genomes(state.params) if kept is None else kept
 
-    def _scored(self, state: State, best, evaluate: Evaluator, generation: int, kept_score: float):
+    def _scored(self, state: RunState, best, evaluate: Evaluator, generation: int, kept_score: float):
         """Score the new iterate in ``state`` (its ``params``) at the end of ``generation`` against the kept one,
         whose genome (P,) is ``best`` (None under ``last``) and score ``kept_score`` (:func:`score_iterate`);
         ``state.best`` becomes the genome kept. Returns ``(team, Measured)``."""

@@ -20,11 +20,11 @@ import numpy as np
 
 from rovermarl import errors
 from rovermarl.algorithms import compiled
-from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, Series, State, build_operator, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, RunState, Series, build_operator, generator
 
 
 @dataclass(kw_only=True)
-class CC11ESState(State):
+class CC11ESState(RunState):
     """``parents`` (M, P) (M = N, or 1 for a homogeneous team) scored ``score``; the bit-generator states
     ``rng_mut`` (which rovers, which changes: the run's ``mutation`` stream) and ``rng_sel`` (the selector's draws:
     its ``selector`` stream); the selector's ``state_dict``."""
@@ -43,7 +43,7 @@ class CC11ES(Algorithm):
     conditions, so selection compares the two on one draw; ``score`` is then the kept team's F on that draw.
     """
 
-    State = CC11ESState
+    state_type = CC11ESState
     fresh_ic = True
 
     def __init__(self, world, k, selection, team, mutation, init_low: float = -2.0, init_high: float = 2.0,

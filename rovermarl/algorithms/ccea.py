@@ -30,12 +30,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import FINAL_TEAMS, LOOPS, Algorithm, Series, State, build_operator, generator, keep_best
+from rovermarl.algorithms.base import (
+    FINAL_TEAMS,
+    LOOPS,
+    Algorithm,
+    RunState,
+    Series,
+    build_operator,
+    generator,
+    keep_best,
+)
 from rovermarl.algorithms.credit import CREDITS, credit
 
 
 @dataclass(kw_only=True)
-class CCEAState(State):
+class CCEAState(RunState):
     """``pops`` (N, pop_size, P): each rover's population; ``score``: the run's team's F (the elites', or the kept
     team's under ``final_team=best``, whose genomes (N, P) are ``kept``, else None); ``best``: the best F so far (the
     behaviour observer logs new bests); ``evals``: team evaluations so far; ``rng``: the ``mutation`` stream's
@@ -74,7 +83,7 @@ class CCEA(Algorithm):
         )
 
     fresh_ic = True
-    State = CCEAState
+    state_type = CCEAState
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return self.pop_size + 1.0 + (fresh_ic and self.final_team == "best")

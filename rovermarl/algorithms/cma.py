@@ -31,11 +31,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, Series, State, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, generator
 
 
 @dataclass(kw_only=True)
-class SepCMAState(State):
+class SepCMAState(RunState):
     """The search distribution: ``mean``, ``diag`` (the diagonal covariance), the paths ``ps`` and ``pc`` (all
     (N*P,)), the step size ``sigma``, the generation ``gen``; the best team so far ``best`` (N, P), scored
     ``score``; ``evals``: team evaluations so far; ``rng``: the ``mutation`` stream's bit-generator state."""
@@ -84,7 +84,7 @@ class SepCMA(Algorithm):
         )
 
     fresh_ic = True
-    State = SepCMAState
+    state_type = SepCMAState
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return float(self.lam + fresh_ic)

@@ -174,7 +174,7 @@ class Run:
             self.observer.start(self.team, initial.score, initial.final_xy)
         else:
             self.generation = int(state["generation"])
-            self.algo_state = p.algorithm.State.from_dict(state["algorithm"])
+            self.algo_state = p.algorithm.state_type.from_dict(state["algorithm"])
             self.initial_score = None
             self.observer.load_state_dict(state["observer"], self.team, self.score)
 
