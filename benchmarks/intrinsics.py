@@ -76,9 +76,10 @@ def copies() -> dict[str, Path | None]:
     return out
 
 
-def run(path: Path | None, core: int, rounds: int, n: int) -> dict:
+def run(path: Path | None, core: int, rounds: int, n: int, child: str = CHILD, *more: str) -> dict:
+    """The ``child`` program's timings (JSON) run on the package at ``path`` (None: this one) on ``core``."""
     env = dict(os.environ, PYTHONPATH=str(path)) if path else dict(os.environ)
-    proc = subprocess.run([sys.executable, "-c", CHILD, str(core), str(rounds), str(n)], env=env, check=True,
+    proc = subprocess.run([sys.executable, "-c", child, str(core), str(rounds), str(n), *more], env=env, check=True,
                           capture_output=True, text=True, cwd=path or ROOT)      # cwd: first on sys.path
     out = json.loads(proc.stdout.splitlines()[-1])
     if not out.pop("package").startswith(str(path or ROOT)):
