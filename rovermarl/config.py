@@ -7,7 +7,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import re
 from pathlib import Path
 
@@ -15,15 +14,11 @@ import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import errors, hydra_compat
-from rovermarl.resources import CONF_DIR
+from rovermarl.resources import CONF_DIR, composer, group_names, options
 from rovermarl.runner.identity import NOT_IN_DIR_NAMES, RUNTIME
 
 _INT = re.compile(r"[+-]?\d+")
 _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
-
-
-def group_names(conf_dir: Path = CONF_DIR) -> set[str]:
-    return {p.name for p in Path(conf_dir).iterdir() if p.is_dir()}
 
 
 def quote_numeric_options(argv: list[str], groups: set[str] | None = None) -> list[str]:
@@ -104,7 +99,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
             raise errors.ConfigError("--config-dir", config_dir, "no such directory")
         jobs = [_with_searchpath(job, config_dir) for job in jobs]
     cfgs = []
-    with _composer() as compose:
+    with composer() as compose:
         for job in jobs:
             try:
                 cfgs.append(compose(config_name, overrides=job))
@@ -131,9 +126,9 @@ def _check_group_values(job: list[str]) -> None:
         value = o.value()
         names = value if isinstance(value, list) else [value]
         if group in groups and not all(isinstance(v, str) for v in names):
-            options = ", ".join(sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml")))
             hint = f" (quote a number: {group}='{value}')" if isinstance(value, int) else ""
-            raise errors.ConfigError(group, value, f"must name an option of the group: {options}{hint}")
+            raise errors.ConfigError(group, value, f"must name an option of the group: {', '.join(options(group))}"
+                                     f"{hint}")
 
 
 def _with_searchpath(job: list[str], config_dir: str) -> list[str]:
@@ -178,19 +173,8 @@ def _one_line(e: Exception) -> str:
 
 def compose_config(*overrides: str) -> DictConfig:
     """The job config the CLI would compose for ``overrides`` (e.g. ``compose_config("k=2", "setup=duo")``)."""
-    with _composer() as compose:
+    with composer() as compose:
         return compose("config", overrides=quote_numeric_options(list(overrides)))
-
-
-@contextlib.contextmanager
-def _composer():
-    """Hydra's compose function, initialised on ``conf/``."""
-    from hydra import compose, initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-
-    GlobalHydra.instance().clear()
-    with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
-        yield compose
 
 
 # ---- a job's overrides, read back -----------------------------------------------------------------------------------

@@ -4,6 +4,7 @@ names its file (:func:`plugin_line`)."""
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import os
 import re
@@ -51,6 +52,40 @@ def plugin_errors(homes):
         if line is None:
             raise
         raise PluginError(line) from None
+
+
+def build(section: str, cls, node):
+    """``cls(**node)`` of a typed config section: ``cls`` is a dataclass whose fields are the section's keys (a field
+    without a default is required) and whose ``__post_init__`` checks their values. A non-mapping, an unknown or
+    missing key, or a bad value is one :class:`ConfigError` naming ``section.key``."""
+    fields = [f for f in dataclasses.fields(cls) if f.init]
+    required = {f.name for f in fields if f.default is f.default_factory is dataclasses.MISSING}
+    keys(section, node, {f.name for f in fields}, required)
+    try:
+        return cls(**node)
+    except ConfigError as e:
+        raise e.under(section) from None
+
+
+def keys(section: str, node, allowed=None, required=()) -> None:
+    """``node`` must be a mapping; with ``allowed``, of those keys only (``_target_`` aside), ``required`` among
+    them."""
+    if not isinstance(node, dict):
+        raise ConfigError(section, node, "must be a mapping" + (" with keys " + ", ".join(sorted(allowed))
+                                                                 if allowed else ""))
+    for key in node if allowed is not None else ():
+        if key not in allowed and key != "_target_":
+            raise ConfigError(f"{section}.{key}", node[key], "unknown key; allowed: " + ", ".join(sorted(allowed)))
+    missing = sorted(set(required) - set(node))
+    if missing:
+        raise ConfigError(f"{section}.{missing[0]}", None, "missing")
+
+
+def flag(key: str, value, allowed: str = "true or false") -> bool:
+    """``value`` if it is a bool, else :class:`ConfigError`."""
+    if not isinstance(value, bool):
+        raise ConfigError(key, value, f"must be {allowed}")
+    return value
 
 
 def _show(value) -> str:

@@ -12,11 +12,13 @@ namespace package, so it resolves to the same ``conf/`` this way), ``PYTHONPATH=
 root. In a wheel that path would be ``site-packages/conf``, which is never used: the packaged copy is found first.
 
 ``CONF_DIR`` is an absolute :class:`~pathlib.Path` to a real directory in every case, usable as Hydra's
-``config_path`` and with ``initialize_config_dir``.
+``config_path`` and with ``initialize_config_dir``; :func:`composer` is Hydra's compose on it, the one way code
+composes the packaged config (the CLI's jobs, ``compose_config``, ``make_world``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import functools
 import importlib.util
@@ -55,13 +57,41 @@ def packaged(relative: str) -> dict:
     return copy.deepcopy(_load(relative))
 
 
+def group_names() -> set[str]:
+    """The packaged config groups (``k``, ``setup``, ...)."""
+    return {p.name for p in CONF_DIR.iterdir() if p.is_dir() and p.name != "__pycache__"}
+
+
+def options(group: str) -> list[str]:
+    """The packaged options of config group ``group``, sorted."""
+    return sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+
+
 @functools.cache
 def option_keys(group: str) -> tuple[frozenset[str], frozenset[str]]:
     """``(allowed, required)``: the keys any option of config group ``group`` has, and those every option has
     (``_target_`` and ``defaults`` left out; an option that sets other groups too contributes its ``group`` node)."""
-    options = []
-    for path in sorted((CONF_DIR / group).glob("*.yaml")):
-        node = _load(f"{group}/{path.name}") or {}
+    keys = []
+    for option in options(group):
+        node = _load(f"{group}/{option}.yaml") or {}
         node = node[group] if isinstance(node.get(group), dict) else node
-        options.append(set(node) - {"_target_", "defaults"})
-    return frozenset(set().union(*options)), frozenset(set.intersection(*options))
+        keys.append(set(node) - {"_target_", "defaults"})
+    return frozenset(set().union(*keys)), frozenset(set.intersection(*keys))
+
+
+@contextlib.contextmanager
+def composer(keep_hydra: bool = False):
+    """Hydra's ``compose`` function, initialised on ``CONF_DIR``. ``keep_hydra``: the Hydra state around it (a caller's
+    own Hydra app) is restored afterwards; else it is left cleared, for the next Hydra launch."""
+    from hydra import compose, initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+    from hydra.initialize import get_gh_backup, restore_gh_from_backup
+
+    backup = get_gh_backup() if keep_hydra else None
+    GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(str(CONF_DIR), version_base="1.3", job_name="rovermarl"):
+            yield compose
+    finally:
+        if backup is not None:
+            restore_gh_from_backup(backup)

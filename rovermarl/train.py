@@ -38,7 +38,7 @@ from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
 from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
 from rovermarl.errors import ConfigError, config_plugin_line  # noqa: E402
-from rovermarl.parallel import BackendError  # noqa: E402
+from rovermarl.parallel import BackendError, backend  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.atomic import check_output_dir  # noqa: E402
 from rovermarl.record.safe_read import Unsafe  # noqa: E402
@@ -134,7 +134,7 @@ def writable(key: str, path: Path) -> None:
 
 def connect(cfgs: list[DictConfig]) -> None:
     """Start (or join) the one Ray instance that all jobs of this invocation share, if any job uses Ray."""
-    on_ray = [c for c in cfgs if c.parallel.backend == "ray"]
+    on_ray = [c for c in cfgs if backend(c.parallel).uses_ray]
     if not on_ray:
         return
     if not on_ray[0].ray.address:                      # an embedded Ray: its CPUs are known before it starts
@@ -193,7 +193,7 @@ def _all_finished(args, cfgs: list[DictConfig]) -> bool:
 
 def _check_shards(cfgs: list[DictConfig], cpus: int) -> None:
     for c in cfgs:
-        if c.parallel.get("ic_shards", 1) > cpus:      # each shard actor holds a CPU for the whole run
+        if backend(c.parallel).shards > cpus:      # each shard actor holds a CPU for the whole run
             raise ConfigError("parallel.ic_shards", c.parallel.ic_shards, f"must be at most the {cpus} CPUs of Ray")
 
 

@@ -156,7 +156,7 @@ SECTIONS = {"env": None, "record": "behaviour every occupancy rerun steps", "par
 
 @given(section=st.sampled_from(["", *sorted(SECTIONS), "mutation", "selection", "team", "k"]),
        name=words.filter(lambda w: w not in {"every", "steps", "name", "value", "hidden", "chunk", "workers",
-                                              "address", "rerun", "backend", "retries", "gamma", "arms",
+                                              "address", "rerun", "retries", "gamma", "arms",
                                               "reward", "sigma", "low", "high", "strict", "episodes"}))
 @SETTINGS
 def test_generated_extra_keys(section, name):
@@ -204,7 +204,9 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["levels=5"], "levels=5: must be a list"),
     (["levels=[a,4]"], "levels[0]=a: must be a finite number"),
     (["k=adaptive", "k.reward=best"], "k.reward=best: must be one of improved, gain"),
-    (["parallel.backend=dask"], "parallel.backend=dask: must be one of ray, serial"),
+    (["parallel._target_=dask"], "parallel._target_=dask: cannot be imported"),
+    (["parallel._target_=rovermarl.policy.MLP"], "parallel._target_=rovermarl.policy.MLP: must name a subclass of "
+                                                 "rovermarl.parallel.Backend"),
     (["ray.address=5"], "ray.address=5: must be null"),
     (["ray=5"], "ray=5: must be a mapping"),
     (["setup.value=[1]"], "setup.value=[1]: must be a list of 10 numbers"),
@@ -263,7 +265,7 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["~env"], "env=None: must be a mapping"),
     (["~setup"], "setup=None: must be a mapping"),
     (["~policy"], "policy=None: must be a mapping"),
-    (["~parallel"], "parallel=None: must be a mapping"),
+    (["~parallel"], "parallel=None: must be a config with a _target_"),
     (["~ray"], "ray=None: must be a mapping"),
     # k lists and k values above N
     (["k=adaptive", "k.arms=[1,5]"], "k.arms=[1, 5]: every k must be an integer in 1..4"),

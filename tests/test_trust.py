@@ -189,7 +189,8 @@ def test_a_config_as_hydra_saves_it_still_exports(finished_job, tmp_path):
 # ---- the allow-list --------------------------------------------------------------------------------------------------
 def test_the_allow_list_is_the_packaged_config_groups():
     allow = groups()
-    assert set(allow.classes) == {"algorithm", "k", "mutation", "selection", "team"}
+    assert set(allow.classes) == {"algorithm", "k", "mutation", "parallel", "selection", "team"}
+    assert allow.classes["parallel"] == {"rovermarl.parallel.Serial", "rovermarl.parallel.ray_backend.Ray"}
     ops = "rovermarl.algorithms.operators."
     assert allow.classes["algorithm"] == {"rovermarl.algorithms.cc11es.CC11ES", "rovermarl.algorithms.ccea.CCEA",
                                           "rovermarl.algorithms.cma.SepCMA", "rovermarl.sb3.PPO",

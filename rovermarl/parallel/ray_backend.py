@@ -1,6 +1,6 @@
-"""Runs on Ray. One embedded Ray (or a joined cluster) serves every job of a multirun, and one pool of
-:class:`ChunkWorker` actors (one CPU each) is reused by all its jobs. Only plain config dicts, integer seeds
-and run states (arrays and numbers) cross to the workers; the driver writes every file."""
+"""Runs on Ray: the backend :class:`Ray` (``parallel=ray``). One embedded Ray (or a joined cluster) serves every job
+of a multirun, and one pool of :class:`ChunkWorker` actors (one CPU each) is reused by all its jobs. Only plain config
+dicts, integer seeds and run states (arrays and numbers) cross to the workers; the driver writes every file."""
 
 from __future__ import annotations
 
@@ -11,9 +11,12 @@ import socket
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 
 import ray
 
+from rovermarl import errors
+from rovermarl.parallel import Backend
 from rovermarl.parallel.errors import BackendError
 
 log = logging.getLogger("rovermarl")
@@ -154,22 +157,68 @@ def _probe(address: str, timeout: float = PROBE_S) -> None:
         raise ConnectionError(f"nothing answers as Ray at {host}:{port} (not a gRPC server)")
 
 
-def run_ray(cfg, job: dict, records, on_chunk, advance) -> None:
+@dataclass(frozen=True)
+class Ray(Backend):
+    """The runs on a pool of Ray actors (one CPU each), a chunk of generations per actor call; with ``ic_shards`` > 1
+    one run at a time, each team evaluation's episodes split over that many actors (:mod:`rovermarl.parallel.shards`:
+    heavy worlds only). The keys' defaults and meanings: ``conf/parallel/ray.yaml``."""
+
+    workers: int | None
+    retries: int
+    ic_shards: int
+    stall_timeout: float
+    uses_ray = True
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.workers is not None:
+            errors.integer("workers", self.workers, 1)
+        errors.integer("retries", self.retries, 0)
+        errors.integer("ic_shards", self.ic_shards, 1)
+        errors.number("stall_timeout", self.stall_timeout, 0, lo_open=True)
+
+    @property
+    def shards(self) -> int:
+        return self.ic_shards
+
+    def run(self, cfg, job: dict, records, on_chunk, advance) -> None:
+        ensure_ray(cfg.ray)
+        (_run_sharded if self.ic_shards > 1 else _run_pool)(self, job, records, on_chunk, advance)
+
+
+def _run_sharded(par: Ray, job: dict, records, on_chunk, advance) -> None:
+    """Advance the records one after another, each evaluation split over ``parallel.ic_shards`` actors."""
+    from rovermarl.parallel.shards import ShardActor, ShardedEvaluation
+
+    release_pool()                                                      # its actors hold the CPUs shards need
+    actors = [ShardActor.remote(job) for _ in range(par.ic_shards)]
+
+    def evaluation(world, ic, keep_final, fresh_seed=None):
+        return ShardedEvaluation(actors, world, ic, keep_final, fresh_seed)
+    try:
+        for rec in records:
+            while not rec.done:
+                on_chunk(rec, rec.add(advance(job, rec.seed, rec.state, par.chunk, evaluation)))
+    finally:
+        for a in actors:
+            ray.kill(a)
+
+
+def _run_pool(par: Ray, job: dict, records, on_chunk, advance) -> None:
     """Advance the records on the actor pool: one chunk per run in flight, at most one per actor."""
-    ensure_ray(cfg.ray)
     cpus = max(1, int(ray.cluster_resources().get("CPU", 1)))
-    slots = cfg.parallel.workers or cpus
+    slots = par.workers or cpus
     if slots > cpus:                     # an actor holds one CPU: the ones beyond Ray's CPUs would never start
         log.info("parallel.workers=%d is more than the %d CPUs of Ray: using %d workers", slots, cpus, cpus)
         slots = cpus
     queue = [rec for rec in records if not rec.done]
-    free = _workers(min(slots, len(queue)), cfg.parallel.get("retries", 5), advance)
+    free = _workers(min(slots, len(queue)), par.retries, advance)
     job_cfg = ray.put(job)
     inflight = {}
-    stall = float(cfg.parallel.get("stall_timeout") or 600)
+    stall = float(par.stall_timeout)
 
     def submit(rec, worker):
-        inflight[worker.advance.remote(job_cfg, rec.seed, rec.state, cfg.parallel.chunk)] = rec, worker
+        inflight[worker.advance.remote(job_cfg, rec.seed, rec.state, par.chunk)] = rec, worker
 
     while queue and free:
         submit(queue.pop(0), free.pop())

@@ -1,4 +1,5 @@
-"""Initial-condition shards: each team evaluation's E episodes split over S Ray actors (``parallel.ic_shards=S``).
+"""Initial-condition shards: each team evaluation's E episodes split over S Ray actors (``parallel.ic_shards=S``, run by
+:class:`rovermarl.parallel.ray_backend.Ray`).
 
 The generation loop stays in the driver; every evaluation sends the team to S actors, each rolls out its slice
 of episodes, and the per-episode returns are concatenated in order before the mean, so scores are bit-identical
@@ -14,7 +15,6 @@ from omegaconf import OmegaConf
 from rovermarl.algorithms.base import Evaluator, Measured
 from rovermarl.env import Rollout, World
 from rovermarl.env.world import score
-from rovermarl.parallel.ray_backend import ensure_ray, release_pool
 
 
 @ray.remote(num_cpus=1)
@@ -80,19 +80,3 @@ class ShardedEvaluation(Evaluator):
         parts = ray.get([a.rollout.remote(np.ascontiguousarray(genomes)) for a in self.actors])
         return Rollout(*(np.concatenate(arrays) for arrays in zip(*parts, strict=True)))
 
-
-def run_sharded(cfg, job: dict, records, on_chunk, advance) -> None:
-    """Advance the records one after another, each evaluation split over ``parallel.ic_shards`` actors."""
-    ensure_ray(cfg.ray)
-    release_pool()                                                      # its actors hold the CPUs shards need
-    actors = [ShardActor.remote(job) for _ in range(cfg.parallel.ic_shards)]
-
-    def evaluation(world, ic, keep_final, fresh_seed=None):
-        return ShardedEvaluation(actors, world, ic, keep_final, fresh_seed)
-    try:
-        for rec in records:
-            while not rec.done:
-                on_chunk(rec, rec.add(advance(job, rec.seed, rec.state, cfg.parallel.chunk, evaluation)))
-    finally:
-        for a in actors:
-            ray.kill(a)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 from rovermarl import errors
 from rovermarl.env.world import World
+from rovermarl.parallel import backend
 from rovermarl.policy import n_params
 from rovermarl.resources import packaged
 
@@ -71,7 +72,7 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     }
     evaluation_s = _evaluation_s(plain, d)
     par = plain.get("parallel") or {}
-    cpus = 1 if par.get("backend") == "serial" else int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count())
+    cpus = int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count()) if backend(par).uses_ray else 1
     job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
 

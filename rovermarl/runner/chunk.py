@@ -14,7 +14,7 @@ from __future__ import annotations
 import json
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
@@ -57,20 +57,26 @@ def build(cfg) -> Parts:
     return Parts(world, algorithm, record, _evaluation(cfg.get("evaluation"), algorithm))
 
 
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """The ``evaluation`` section: how a team is scored (defaults and meanings: ``conf/config.yaml``)."""
+
+    fresh_ic: bool
+    heldout: int
+
+    def __post_init__(self):
+        errors.flag("fresh_ic", self.fresh_ic)
+        errors.integer("heldout", self.heldout, 1, 1_000_000)
+
+
 def _evaluation(node, algorithm: Algorithm) -> dict:
-    """The ``evaluation`` section, checked, with its defaults filled in."""
+    """The ``evaluation`` section, checked, with its defaults filled in (a config from before the section)."""
     given = OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else dict(node or {})
-    for key in given:
-        if key not in EVALUATION:
-            raise errors.ConfigError(f"evaluation.{key}", given[key], "unknown key; allowed: " + ", ".join(EVALUATION))
-    out = {**EVALUATION, **given}
-    if not isinstance(out["fresh_ic"], bool):
-        raise errors.ConfigError("evaluation.fresh_ic", out["fresh_ic"], "must be true or false")
-    errors.integer("evaluation.heldout", out["heldout"], 1, 1_000_000)
-    if out["fresh_ic"] and not algorithm.fresh_ic:
+    out = errors.build("evaluation", EvaluationConfig, {**EVALUATION, **given})
+    if out.fresh_ic and not algorithm.fresh_ic:
         raise errors.ConfigError("evaluation.fresh_ic", True, f"the algorithm {type(algorithm).__name__} does not "
                                  "draw fresh initial conditions (Algorithm.fresh_ic is false)")
-    return out
+    return asdict(out)
 
 
 def upgrade(cfg: DictConfig) -> DictConfig:

@@ -14,6 +14,7 @@ from rovermarl import jit
 from rovermarl.algorithms import compiled
 from rovermarl.algorithms.cc11es import CC11ES
 from rovermarl.jit import said
+from rovermarl.parallel import backend
 from rovermarl.record.atomic import faults_off
 from rovermarl.runner.chunk import parts, to_plain
 from rovermarl.runner.job import run_job
@@ -31,7 +32,7 @@ def cold(cfg: DictConfig) -> dict[str, list[str]]:
     if not isinstance(algorithm, CC11ES):                               # a population's teams: in one call
         code.append(getattr(kernel, "evaluate_many", None))
     elif algorithm.loop != "python" and compiled.refusal(
-            algorithm, built.evaluation["fresh_ic"], cfg.parallel.get("ic_shards", 1) <= 1) is None:
+            algorithm, built.evaluation["fresh_ic"], backend(cfg.parallel).shards == 1) is None:
         code.append(compiled.loop_of(kernel)._generations)
     want = f"array({world.dtype}"
     missing: dict[str, list[str]] = {}
@@ -47,8 +48,8 @@ def cold(cfg: DictConfig) -> dict[str, list[str]]:
 
 def warm(cfg: DictConfig) -> float:
     """Run ``cfg`` for 2 generations, 1 seed, serially, into a temporary dir; returns the seconds it took."""
-    tiny = OmegaConf.merge(cfg, {"generations": 2, "seeds": 1, "parallel": {"backend": "serial"},
-                                 "checkpoint": {"every": 2}})
+    tiny = OmegaConf.merge(cfg, {"generations": 2, "seeds": 1, "checkpoint": {"every": 2}})
+    tiny.parallel = {"_target_": "rovermarl.parallel.Serial", "chunk": cfg.parallel.chunk}
     t0 = time.perf_counter()
     with faults_off(), tempfile.TemporaryDirectory(prefix="rovermarl-warmup-") as d:   # a fault injected into the
         run_job(tiny, Path(d) / "job", name="warmup")                                      # job is not the warm-up's

@@ -1,16 +1,24 @@
-"""Checks of a composed job config, run before any work (and before Ray starts)."""
+"""Checks of a composed job config, run before any work (and before Ray starts).
+
+The run-level sections are typed configs: a dataclass each (:class:`Job`, :class:`Checkpoint`, :class:`Record`,
+:class:`Ray`, :class:`Budget`; ``evaluation``: :class:`rovermarl.runner.chunk.EvaluationConfig`; ``parallel``: the
+backend, :class:`rovermarl.parallel.Backend`) whose fields are the section's keys and whose ``__post_init__`` is the
+one home of their checks; the section's yaml in ``conf/`` is the one home of its defaults.
+"""
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, fields
 from functools import cache
 
 import numpy as np
-from omegaconf import DictConfig, OmegaConf, read_write
+from omegaconf import DictConfig, ListConfig, OmegaConf, read_write
 from omegaconf.errors import InterpolationKeyError
 
 from rovermarl import errors
-from rovermarl.resources import CONF_DIR, option_keys, packaged
+from rovermarl.parallel import backend
+from rovermarl.resources import group_names, option_keys, packaged
 from rovermarl.runner import budget
 from rovermarl.runner.chunk import parts, to_plain
 
@@ -18,9 +26,72 @@ from rovermarl.runner.chunk import parts, to_plain
 @cache
 def top_level() -> frozenset[str]:
     """The allowed top-level keys: the package's config groups and the run-level keys of ``conf/config.yaml``."""
-    groups = {p.name for p in CONF_DIR.iterdir() if p.is_dir() and p.name != "__pycache__"}
-    run_keys = set(packaged("config.yaml")) - {"defaults", "hydra"}
-    return frozenset(groups | run_keys)
+    return frozenset(group_names() | set(packaged("config.yaml")) - {"defaults", "hydra"})
+
+
+@dataclass(frozen=True)
+class Job:
+    """The run-level keys of ``conf/config.yaml`` (their defaults and meanings are there)."""
+
+    seeds: int
+    seed: int
+    generations: int
+    levels: list
+    resume: bool | str
+
+    def __post_init__(self):
+        errors.integer("seeds", self.seeds, 1)
+        errors.integer("seed", self.seed, 0)
+        errors.integer("generations", self.generations, 1)
+        if not isinstance(self.levels, ListConfig | list):
+            raise errors.ConfigError("levels", self.levels, "must be a list of score levels")
+        for i, lv in enumerate(self.levels):
+            errors.number(f"levels[{i}]", lv)
+        if self.resume != "strict":
+            errors.flag("resume", self.resume, "true, false or strict")
+
+
+@dataclass(frozen=True)
+class Checkpoint:
+    every: int
+
+    def __post_init__(self):
+        errors.integer("every", self.every, 1)
+
+
+@dataclass(frozen=True)
+class Record:
+    rerun: bool
+    behaviour: bool
+    occupancy: bool
+    every: int
+    steps: bool
+
+    def __post_init__(self):
+        for key in ("rerun", "behaviour", "occupancy", "steps"):
+            errors.flag(key, getattr(self, key))
+        errors.integer("every", self.every, 1)
+
+
+@dataclass(frozen=True)
+class Ray:
+    address: str | None
+    num_cpus: int | None
+
+    def __post_init__(self):
+        if self.address is not None and (not isinstance(self.address, str) or not self.address):
+            raise errors.ConfigError("address", self.address, "must be null, 'auto' or 'HOST:PORT'")
+        if self.num_cpus is not None:
+            errors.integer("num_cpus", self.num_cpus, 1)
+
+
+@dataclass(frozen=True)
+class Budget:
+    agent_steps: int | None
+
+    def __post_init__(self):
+        if self.agent_steps is not None:
+            errors.integer("agent_steps", self.agent_steps, 1)
 
 
 def validate(cfg: DictConfig) -> None:
@@ -30,44 +101,17 @@ def validate(cfg: DictConfig) -> None:
         if key not in allowed and key != "hydra":
             raise errors.ConfigError(key, OmegaConf.select(cfg, key), "unknown top-level key; allowed: " +
                                      ", ".join(sorted(allowed)))
-    _keys("setup", cfg.get("setup"), option_keys("setup")[0], option_keys("setup")[0])  # World names a missing one
-    _keys("env", cfg.get("env"), None)  # World names unknown env keys
-    _keys(*_group("policy", cfg))
-    _keys("ray", cfg.get("ray"), set(packaged("config.yaml")["ray"]), set(packaged("config.yaml")["ray"]))
-    errors.integer("seeds", cfg.get("seeds"), 1)
-    errors.integer("seed", cfg.get("seed"), 0)
-    errors.integer("generations", cfg.get("generations"), 1)
-    levels = cfg.get("levels")
-    if not OmegaConf.is_list(levels):
-        raise errors.ConfigError("levels", levels, "must be a list of score levels")
-    for i, lv in enumerate(levels):
-        errors.number(f"levels[{i}]", lv)
-    if cfg.get("resume") != "strict":
-        _flag("resume", cfg.get("resume"), "true, false or strict")
-    _keys("checkpoint", cfg.get("checkpoint"), set(packaged("config.yaml")["checkpoint"]))
-    errors.integer("checkpoint.every", cfg.checkpoint.get("every"), 1)
-    rec = cfg.get("record")
-    _keys(*_group("record", cfg))
-    for key in ("rerun", "behaviour", "occupancy", "steps"):
-        _flag(f"record.{key}", rec.get(key))
-    errors.integer("record.every", rec.get("every"), 1)
-    par = cfg.get("parallel")
-    _keys(*_group("parallel", cfg))
-    errors.choice("parallel.backend", par.get("backend"), ("ray", "serial"))
-    errors.integer("parallel.chunk", par.get("chunk"), 1)
-    errors.integer("parallel.retries", par.get("retries", 0), 0)
+    errors.keys("setup", _plain(cfg.get("setup")), option_keys("setup")[0])   # World names a missing one
+    errors.keys("env", _plain(cfg.get("env")))                                 # and unknown env keys
+    errors.keys("policy", _plain(cfg.get("policy")), *option_keys("policy"))
+    _section("ray", Ray, cfg)
+    Job(**{f.name: cfg.get(f.name) for f in fields(Job)})
+    _section("checkpoint", Checkpoint, cfg)
+    _section("record", Record, cfg)
+    par = backend(cfg.get("parallel"))
     episodes = cfg.env.get("episodes")                   # a shard of no episode would have nothing to score
-    errors.integer("parallel.ic_shards", par.get("ic_shards", 1), 1,       # (env.episodes < 1: its own line later)
-                   episodes if isinstance(episodes, int) and episodes >= 1 else None)
-    if par.get("stall_timeout") is not None:
-        errors.number("parallel.stall_timeout", par.stall_timeout, 0, lo_open=True)
-    if par.get("workers") is not None:
-        errors.integer("parallel.workers", par.workers, 1)
-    address = cfg.ray.get("address")
-    if address is not None and (not isinstance(address, str) or not address):
-        raise errors.ConfigError("ray.address", address, "must be null, 'auto' or 'HOST:PORT'")
-    if cfg.ray.get("num_cpus") is not None:
-        errors.integer("ray.num_cpus", cfg.ray.num_cpus, 1)
+    if isinstance(episodes, int) and episodes >= 1:      # (env.episodes < 1: its own line later)
+        errors.integer("parallel.ic_shards", par.shards, 1, episodes)
     try:
         plain = to_plain(cfg)
     except InterpolationKeyError as e:                 # e.g. ~k: the algorithm's node refers to the group
@@ -83,7 +127,7 @@ def validate(cfg: DictConfig) -> None:
         built = parts(plain)
     built.algorithm.check_series()
     try:
-        built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.get("ic_shards", 1) == 1)
+        built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.shards == 1)
     except errors.ConfigError as e:
         raise e.under("algorithm") from None
     budget.check(plain, series_bytes(built.algorithm.series),
@@ -96,13 +140,9 @@ def apply_budget(cfg: DictConfig, algorithm, fresh_ic: bool) -> bool:
     <rovermarl.algorithms.base.Algorithm.agent_steps_per_generation>` each (19,200,000 agent-steps = 20,000
     generations of CC-(1+1)-ES with 4 rovers, 1,818 of the CCEA's 11 team evaluations). Returns whether it did."""
     node = cfg.get("budget")
-    if node is None:
-        return False
-    _keys("budget", node, {"agent_steps"})
-    steps = node.get("agent_steps")
+    steps = None if node is None else _section("budget", Budget, cfg).agent_steps
     if steps is None:
         return False
-    steps = errors.integer("budget.agent_steps", steps, 1)
     per = algorithm.agent_steps_per_generation(fresh_ic)
     if steps < per:
         raise errors.ConfigError("budget.agent_steps", steps, f"must be at least one generation ({per} agent-steps "
@@ -117,28 +157,10 @@ def series_bytes(series) -> int:
     return sum(np.dtype(s.dtype).itemsize * int(np.prod(s.shape)) for s in series)
 
 
-def _group(group: str, cfg) -> tuple:
-    """``_keys`` arguments of a config group: its node, the keys of its options in conf/, those not in every one."""
-    allowed, required = option_keys(group)
-    return group, cfg.get(group), set(allowed), set(allowed - required)
+def _section(key: str, cls, cfg):
+    """The typed config of section ``key`` of ``cfg`` (:func:`rovermarl.errors.build`)."""
+    return errors.build(key, cls, _plain(cfg.get(key)))
 
 
-def _flag(key: str, value, allowed: str = "true or false") -> None:
-    if not isinstance(value, bool):
-        raise errors.ConfigError(key, value, f"must be {allowed}")
-
-
-def _keys(section: str, node, allowed: set[str] | None, optional: set[str] = frozenset()) -> None:
-    """``node`` must be a mapping; with ``allowed``, of those keys only (all but ``optional`` required)."""
-    if not isinstance(node, DictConfig):
-        keys = " with keys " + ", ".join(sorted(allowed)) if allowed else ""
-        raise errors.ConfigError(section, node, f"must be a mapping{keys}")
-    if allowed is None:
-        return
-    for key in node:
-        if key not in allowed and key != "_target_":
-            raise errors.ConfigError(f"{section}.{key}", node.get(key), "unknown key; allowed: " +
-                                     ", ".join(sorted(allowed)))
-    for key in allowed - optional:
-        if key not in node:
-            raise errors.ConfigError(f"{section}.{key}", None, "missing")
+def _plain(node):
+    return OmegaConf.to_container(node, resolve=True) if OmegaConf.is_config(node) else node
