@@ -391,6 +391,14 @@ def generator(state: dict) -> np.random.Generator:
     return np.random.Generator(bit)
 
 
+def init_range(low, high) -> tuple[float, float]:
+    """The initial genomes' range (``policy.init_low``, ``policy.init_high``), checked: numbers, low below high."""
+    low, high = errors.number("policy.init_low", low), errors.number("policy.init_high", high)
+    if high <= low:
+        raise errors.ConfigError("policy.init_high", high, f"must be greater than policy.init_low={low}")
+    return low, high
+
+
 def build_operator(node, group: str, **context):
     """Instantiate config ``node`` of ``group`` (``_target_`` plus keywords, and ``context`` such as N); bad values
     raise :class:`~rovermarl.errors.ConfigError` with the key under ``group`` (``gamma`` -> ``k.gamma``)."""

@@ -20,7 +20,16 @@ import numpy as np
 
 from rovermarl import errors
 from rovermarl.algorithms import compiled
-from rovermarl.algorithms.base import LOOPS, Algorithm, AlgorithmError, RunState, Series, build_operator, generator
+from rovermarl.algorithms.base import (
+    LOOPS,
+    Algorithm,
+    AlgorithmError,
+    RunState,
+    Series,
+    build_operator,
+    generator,
+    init_range,
+)
 
 
 @dataclass(kw_only=True)
@@ -51,10 +60,7 @@ class CC11ES(Algorithm):
         super().__init__(world)
         self.loop = errors.choice("loop", loop, LOOPS)
         n = world.n_rovers
-        self.low = errors.number("policy.init_low", init_low)
-        self.high = errors.number("policy.init_high", init_high)
-        if self.high <= self.low:
-            raise errors.ConfigError("policy.init_high", self.high, f"must be greater than policy.init_low={self.low}")
+        self.low, self.high = init_range(init_low, init_high)
         self.composition = build_operator(team, "team", n_agents=n)
         self.mutate = build_operator(mutation, "mutation")
         self.accept = build_operator(selection, "selection")

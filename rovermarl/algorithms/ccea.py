@@ -38,6 +38,7 @@ from rovermarl.algorithms.base import (
     Series,
     build_operator,
     generator,
+    init_range,
     keep_best,
 )
 from rovermarl.algorithms.credit import CREDITS, credit
@@ -71,10 +72,7 @@ class CCEA(Algorithm):
         self.pop_size = errors.integer("pop_size", pop_size, 2, 100_000)
         self.elites = errors.integer("elites", elites, 1, self.pop_size - 1)   # slot 0: the best
         self.reward = errors.choice("reward", reward, CREDITS)
-        self.low = errors.number("policy.init_low", init_low)
-        self.high = errors.number("policy.init_high", init_high)
-        if self.high <= self.low:
-            raise errors.ConfigError("policy.init_high", self.high, f"must be greater than policy.init_low={self.low}")
+        self.low, self.high = init_range(init_low, init_high)
         self.mutate = build_operator(mutation, "mutation")
         self.series = (
             Series("team_evals", "int64", doc="team evaluations so far, the initial team's included"),

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, generator
+from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, generator, init_range
 
 
 @dataclass(kw_only=True)
@@ -61,9 +61,7 @@ class SepCMA(Algorithm):
         if errors.choice("loop", loop, LOOPS) == "compiled":
             raise errors.ConfigError("loop", loop, "CMA-ES has no compiled generation loop (auto and python run it)")
         self.sigma0 = errors.number("sigma", sigma, 0, lo_open=True)
-        self.low, self.high = errors.number("policy.init_low", init_low), errors.number("policy.init_high", init_high)
-        if self.high <= self.low:
-            raise errors.ConfigError("policy.init_high", self.high, f"must be greater than policy.init_low={self.low}")
+        self.low, self.high = init_range(init_low, init_high)
         self.n = n = world.n_rovers * world.n_params
         self.lam = 4 + int(3 * math.log(n)) if popsize is None else errors.integer("popsize", popsize, 4, 100_000)
         mu = self.lam // 2
