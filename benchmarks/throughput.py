@@ -55,7 +55,7 @@ def kernel_inputs(world, seed: int = 0):
     """Arguments of ``rollout`` without its outputs: a random team, the world's starts and the world's arrays."""
     xy0, h0, _ = world.initial_conditions(seed=seed)
     genomes = np.random.default_rng(seed).uniform(-2, 2, (world.n_rovers, world.n_params))
-    return (genomes, xy0, h0, world.poi_xy, world._type, world._coupling, world._value, world.steps,
+    return (genomes, xy0, h0, world.poi_xy, world.task.sensor_type, world.task.coupling, world.task.value, world.steps,
             world.policy.hidden, float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
 
 
@@ -213,8 +213,9 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
     to_flat(h0, heading)
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
-    args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
-            input_rows(n, world._type), n_ep, world.policy.hidden, np.empty((world.policy.hidden + 2) * n_ep),
+    typ = world.task.sensor_type
+    args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, typ, float(world.sensor_range), obs,
+            input_rows(n, typ), n_ep, world.policy.hidden, np.empty((world.policy.hidden + 2) * n_ep),
             np.empty(d, dtype=np.int64), a0, a1, float(world.v_max), world.w_max)
     out = {}
     for which, name in enumerate(("sense", "act", "move")):
