@@ -1,7 +1,7 @@
 """Single-core throughput of the default world: the fused rollout kernel (float64, and float32 as under
 ``env.dtype=float32``) against its frozen copy at commit 4c4ae3c (``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``,
 the full generation loop (compiled, and CC11ES's Python loop: ``compiled_over_python_loop``), and the plain numpy
-reference (``rovermarl.env.reference``). Prints one JSON line.
+reference (``tests/reference.py``). Prints one JSON line.
 
     python benchmarks/throughput.py [--setup solo] [--repeats 7] [--evals 3000] [--numpy-evals 150]
 
@@ -44,11 +44,14 @@ from numba import njit
 
 from rovermarl import make_world
 from rovermarl.config import compose_config
-from rovermarl.env import kernel, reference
+from rovermarl.env import kernel
 from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
 from rovermarl.runner.chunk import Run, to_plain
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    # the repository root
+from tests import reference  # noqa: E402 -- the SPEC in plain numpy, the tests' oracle
 
 
 def kernel_inputs(world, seed: int = 0):
