@@ -94,7 +94,8 @@ def old_evaluate(world):
     """4c4ae3c's ``World.evaluate`` (its checks, its kernel ``kernel_4c4ae3c.rollout``, its score; float64), and its
     bare kernel call."""
     import kernel_4c4ae3c as old  # same folder
-    consts = (world.poi_xy, world._type, world._coupling, world._value, world.steps, world.policy.hidden,
+    task = world.task
+    consts = (world.poi_xy, task.sensor_type, task.coupling, task.value, world.steps, world.policy.hidden,
               float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
     no = (np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)), np.empty((0, 1, 2)))
 

@@ -141,9 +141,10 @@ def inputs(world, seed: int = 0, dtype=np.float64):
     heading, sin_h, cos_h = rng.uniform(-np.pi, np.pi, ne), np.empty(ne), np.empty(ne)
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
-    sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs)
+    sense_flat(x, y, sin_h, cos_h, n, world.poi_xy, world.task.sensor_type, float(world.sensor_range), obs)
     genomes = rng.uniform(-2, 2, (n, world.n_params))
-    return genomes.astype(dtype), obs.astype(dtype), input_rows(n, world._type), n_ep, world.policy.hidden, d, ne
+    rows = input_rows(n, world.task.sensor_type)
+    return genomes.astype(dtype), obs.astype(dtype), rows, n_ep, world.policy.hidden, d, ne
 
 
 def main() -> None:

@@ -1,7 +1,7 @@
 """Single-core throughput of the default world: the fused rollout kernel (float64, and float32 as under
 ``env.dtype=float32``) against its frozen copy at commit 4c4ae3c (``benchmarks/kernel_4c4ae3c.py``), ``World.evaluate``,
 the full generation loop (compiled, and CC11ES's Python loop: ``compiled_over_python_loop``), and the plain numpy
-reference (``rovermarl.env.reference``). Prints one JSON line.
+reference (``tests/reference.py``). Prints one JSON line.
 
     python benchmarks/throughput.py [--setup solo] [--repeats 7] [--evals 3000] [--numpy-evals 150]
 
@@ -44,18 +44,21 @@ from numba import njit
 
 from rovermarl import make_world
 from rovermarl.config import compose_config
-from rovermarl.env import kernel, reference
+from rovermarl.env import kernel
 from rovermarl.env.kernel.checks import input_rows
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.stages import act_flat, move_flat, sense_flat, to_flat
 from rovermarl.runner.chunk import Run, to_plain
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    # the repository root
+from tests import reference  # noqa: E402 -- the SPEC in plain numpy, the tests' oracle
 
 
 def kernel_inputs(world, seed: int = 0):
     """Arguments of ``rollout`` without its outputs: a random team, the world's starts and the world's arrays."""
     xy0, h0, _ = world.initial_conditions(seed=seed)
     genomes = np.random.default_rng(seed).uniform(-2, 2, (world.n_rovers, world.n_params))
-    return (genomes, xy0, h0, world.poi_xy, world._type, world._coupling, world._value, world.steps,
+    return (genomes, xy0, h0, world.poi_xy, world.task.sensor_type, world.task.coupling, world.task.value, world.steps,
             world.policy.hidden, float(world.sensor_range), float(world.obs_radius), float(world.v_max), world.w_max)
 
 
@@ -213,8 +216,9 @@ def stage_profile(world, reps: int, repeats: int) -> dict:
     to_flat(h0, heading)
     sincos_all(heading, sin_h, cos_h)
     obs = np.empty(d * ne)
-    args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, world._type, float(world.sensor_range), obs,
-            input_rows(n, world._type), n_ep, world.policy.hidden, np.empty((world.policy.hidden + 2) * n_ep),
+    typ = world.task.sensor_type
+    args = (genomes, x, y, heading, sin_h, cos_h, n, world.poi_xy, typ, float(world.sensor_range), obs,
+            input_rows(n, typ), n_ep, world.policy.hidden, np.empty((world.policy.hidden + 2) * n_ep),
             np.empty(d, dtype=np.int64), a0, a1, float(world.v_max), world.w_max)
     out = {}
     for which, name in enumerate(("sense", "act", "move")):

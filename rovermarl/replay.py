@@ -64,6 +64,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
     """Record the final team of ``run`` on its initial conditions (or fresh ones from ``ic_seed``) to an .rrd. A world
     plug-in's run needs ``trust`` (``--trust-config``: its module runs code)."""
     from rovermarl.env import World
+    from rovermarl.env.trial import plugin_homes
     from rovermarl.record.atomic import beneath
     from rovermarl.record.events import occupancy
     from rovermarl.record.rerun_log import write_rrd
@@ -89,7 +90,7 @@ def resimulate(run: Path, ic_seed: int | None, out: Path | None, trust: bool = F
         ic = tuple(z[k] for k in ("xy", "heading", "layout") if k in z)
     else:
         ic = world.initial_conditions(ic_seed)
-    with plugin_errors(world.plugin_homes()):                          # a plug-in's hook: one line naming it
+    with plugin_errors(plugin_homes(world)):                          # a plug-in's hook: one line naming it
         roll = world.rollout(genomes, ic)
     count = occupancy(world, roll.xy[:, -1])
     score = float(roll.returns.mean())

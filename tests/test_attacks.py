@@ -17,7 +17,7 @@ from tests.conftest import ROOT, make_cfg, run_cli, run_study
 JOB = "generations=30,k=1,setup=duo"
 SWEEP = ("-m", "k=1", "setup=duo", "generations=30", "seeds=1", "parallel=serial")
 ENV = {"PYTHONPATH": str(ROOT)}                       # rovermarl from this checkout, whatever the working dir
-PWN = "import pathlib\npathlib.Path({marker!r}).write_text('pwned')\nfrom rovermarl.env import World\n"
+PWN = "import pathlib\npathlib.Path({marker!r}).write_text('pwned')\nfrom rovermarl.worlds import World\n"
 
 
 @pytest.fixture(scope="module")

@@ -177,11 +177,12 @@ def test_finite_tanh_and_act_give_the_general_bits():
         stages.act_flat(genomes, obs, every, e, h, np.empty((h + 2) * e), np.empty(d, np.int64), a0, a1, flag)
     assert same_bits(acts[0][0], acts[1][0]) and same_bits(acts[0][1], acts[1][1])
     r = float(world.sensor_range)
-    assert checks.mlp_finite(genomes, world._type, r)
-    assert not checks.mlp_finite(genomes * np.inf, world._type, r) and not checks.mlp_finite(genomes, world._type, 0.0)
-    assert not checks.mlp_finite(genomes, world._type + 2.0 ** 200, r)
-    assert not checks.mlp_finite(np.where(genomes > 1, np.nan, genomes), world._type, r)
-    assert not checks.mlp_finite(np.zeros((1, 2 ** 20)), world._type, r)            # a sum of 2^20 terms
+    assert checks.mlp_finite(genomes, world.task.sensor_type, r)
+    typ = world.task.sensor_type
+    assert not checks.mlp_finite(genomes * np.inf, typ, r) and not checks.mlp_finite(genomes, typ, 0.0)
+    assert not checks.mlp_finite(genomes, world.task.sensor_type + 2.0 ** 200, r)
+    assert not checks.mlp_finite(np.where(genomes > 1, np.nan, genomes), world.task.sensor_type, r)
+    assert not checks.mlp_finite(np.zeros((1, 2 ** 20)), world.task.sensor_type, r)            # a sum of 2^20 terms
 
 
 def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
@@ -190,7 +191,7 @@ def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
     world = make_world("duo")
     n, e = world.n_rovers, world.episodes
     rng = np.random.default_rng(5)
-    args = (n, world.poi_xy, world._type, world.sensor_range)
+    args = (n, world.poi_xy, world.task.sensor_type, world.sensor_range)
     for trial in range(6):
         x, y = rng.uniform(-30, 30, (2, n * e))
         h = rng.uniform(-4, 4, n * e)
@@ -211,7 +212,7 @@ def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
         if trial < 4:
             assert same_bits(got, ranged)
     out = np.empty((0, n, world.obs_dim))                             # no episodes: nothing to read or write
-    kernel.sense(np.empty((0, n, 2)), np.empty((0, n)), world.poi_xy, world._type, world.sensor_range, out)
+    kernel.sense(np.empty((0, n, 2)), np.empty((0, n)), world.poi_xy, world.task.sensor_type, world.sensor_range, out)
 
 
 # ---- the stages, one at a time, against the fused rollout ------------------------------------------------------
@@ -232,13 +233,13 @@ def stepwise(world, genomes, ic):
     obs, actions = np.empty((e, n, world.obs_dim)), np.empty((e, n, 2))
     traj_xy, traj_heading = [xy.copy()], [heading.copy()]
     for _ in range(world.steps):
-        kernel.sense(xy, heading, world.poi_xy, world._type, world.sensor_range, obs)
+        kernel.sense(xy, heading, world.poi_xy, world.task.sensor_type, world.sensor_range, obs)
         kernel.act(genomes, obs, world.policy.hidden, actions)
         kernel.move(xy, heading, actions, world.v_max, world.w_max)
         traj_xy.append(xy.copy())
         traj_heading.append(heading.copy())
     returns = np.empty(e)
-    kernel.reward(xy, world.poi_xy, world._coupling, world._value, world.obs_radius, returns)
+    kernel.reward(xy, world.poi_xy, world.task.coupling, world.task.value, world.obs_radius, returns)
     return np.stack(traj_xy, axis=1), np.stack(traj_heading, axis=1), returns
 
 
@@ -263,22 +264,22 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     xy = xy + np.random.default_rng(0).uniform(-20, 20, xy.shape)
     e, n, d = 5, 3, world.obs_dim
     obs = np.empty((e, n, d))
-    kernel.sense(xy, heading, world.poi_xy, world._type, world.sensor_range, obs)
+    kernel.sense(xy, heading, world.poi_xy, world.task.sensor_type, world.sensor_range, obs)
     x, y, h = (np.ascontiguousarray(a.T).ravel() for a in (xy[..., 0], xy[..., 1], heading))   # q = i*E + e
     s, c, flat = np.empty(n * e), np.empty(n * e), np.empty(d * n * e)
     kernel.sincos_all(h, s, c)
-    stages.sense_flat(x, y, s, c, n, world.poi_xy, world._type, world.sensor_range, flat)
+    stages.sense_flat(x, y, s, c, n, world.poi_xy, world.task.sensor_type, world.sensor_range, flat)
     assert same_bits(obs, flat.reshape(d, n, e).transpose(2, 1, 0))
     np.testing.assert_allclose(obs, world.observe(xy, heading), rtol=0, atol=1e-14)   # libm twin: a few ulp
     genomes = np.random.default_rng(1).uniform(-2, 2, (n, world.n_params))
     actions = np.empty((e, n, 2))
     kernel.act(genomes, obs, world.policy.hidden, actions)
     a0, a1 = np.empty(n * e), np.empty(n * e)
-    cand = checks.input_rows(n, world._type)                         # as the rollout: no structural zero rows
+    cand = checks.input_rows(n, world.task.sensor_type)           # as the rollout: no structural zero rows
     h = world.policy.hidden
     stages.act_flat(genomes, flat, cand, e, h, np.empty((h + 2) * e), np.empty(d, np.int64), a0, a1)
     assert same_bits(actions, np.stack([a0.reshape(n, e).T, a1.reshape(n, e).T], axis=-1))
-    assert (cand == -1).sum() == n * (2 + (world._type == 0).sum())   # own slot and type-0 rows left out
+    assert (cand == -1).sum() == n * (2 + (world.task.sensor_type == 0).sum())   # own slot and type-0 rows left out
 
 
 @pytest.mark.parametrize(("episodes", "hidden"), [(16, 16), (8, 16), (20, 6), (3, 5), (24, 4), (1, 1)])
@@ -316,10 +317,10 @@ def test_poi_test_has_one_home():
     assert all(kernel.poi_of(*xy[e, i], world.poi_xy, world.obs_radius) == first[e, i]
                for e in range(200) for i in range(4))
     returns, paid = np.empty(200), np.empty(200)
-    kernel.reward(xy, world.poi_xy, world._coupling, world._value, world.obs_radius, returns)
-    kernel.payout(count, world._coupling, world._value, paid)
+    kernel.reward(xy, world.poi_xy, world.task.coupling, world.task.value, world.obs_radius, returns)
+    kernel.payout(count, world.task.coupling, world.task.value, paid)
     np.testing.assert_array_equal(returns, paid)
-    np.testing.assert_array_equal(returns, np.where(count >= world._coupling, world._value, 0).sum(-1))
+    np.testing.assert_array_equal(returns, np.where(count >= world.task.coupling, world.task.value, 0).sum(-1))
     np.testing.assert_array_equal(returns, world.team_return(xy))
 
 

@@ -28,7 +28,7 @@ for seed in range(4):
         digest.update(a.tobytes())
 sense = njit(**{k: v for k, v in FAST.items() if k != "cache"})(stages.sense_flat.py_func)
 ne = 4 * world.episodes
-sense(*np.random.default_rng(1).random((4, ne)), 4, world.poi_xy, world._type, 5.0, np.empty(38 * ne))
+sense(*np.random.default_rng(1).random((4, ne)), 4, world.poi_xy, world.task.sensor_type, 5.0, np.empty(38 * ne))
 asm = list(sense.inspect_asm().values())[0]
 print(json.dumps({"set": target.SET, "digest": digest.hexdigest(), "zmm": len(re.findall("zmm", asm))}))
 """

@@ -12,7 +12,7 @@ PLUGIN = '''from dataclasses import dataclass
 
 import numpy as np
 
-from rovermarl.env import World
+from rovermarl.worlds import World
 
 
 @dataclass(frozen=True, eq=False)

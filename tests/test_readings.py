@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from rovermarl import errors, make_world
-from rovermarl.env import reference
+from tests import reference
 
 READINGS = [{}, {"reward": "any_step"}, {"reward": "best_step"}, {"reward": "mean_step"}, {"speed": "clip"},
             {"poi_type": "sign"}, {"poi_type": "value"}]

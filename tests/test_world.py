@@ -180,7 +180,7 @@ def test_start_squares_generalise_the_quadrants(n):
     """For N != 4, rover i starts in the quadrant square turned so its diagonal bisects heading sector i."""
     w = make_world("solo", n_rovers=n)
     xy, heading, _ = w.initial_conditions(0, n=4000)
-    phi = w.start_rotation
+    phi = w.starts.start_rotation
     c, s = np.cos(-phi), np.sin(-phi)
     back = np.stack([xy[..., 0] * c - xy[..., 1] * s, xy[..., 0] * s + xy[..., 1] * c], axis=-1)
     assert back.min() > -1e-12 and back.max() < 0.5 + 1e-12
@@ -189,13 +189,13 @@ def test_start_squares_generalise_the_quadrants(n):
     assert np.all((heading >= sector * np.arange(n)) & (heading <= sector * (np.arange(n) + 1)))
     bisector = np.arctan2(xy[..., 1].mean(axis=0), xy[..., 0].mean(axis=0)) % (2 * np.pi)
     np.testing.assert_allclose(bisector, (np.arange(n) + 0.5) * sector, atol=0.05)
-    assert w.start_squares.shape == (n, 5, 2)
+    assert w.starts.start_squares.shape == (n, 5, 2)
 
 
 def test_four_rover_start_squares_are_the_quadrants():
     w = make_world("solo")
-    np.testing.assert_allclose(w.start_squares[:, 2], [[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
-    np.testing.assert_allclose(w.start_rotation, np.arange(4) * np.pi / 2)
+    np.testing.assert_allclose(w.starts.start_squares[:, 2], [[0.5, 0.5], [-0.5, 0.5], [-0.5, -0.5], [0.5, -0.5]])
+    np.testing.assert_allclose(w.starts.start_rotation, np.arange(4) * np.pi / 2)
 
 
 def test_non_finite_targets_read_as_out_of_range(solo):

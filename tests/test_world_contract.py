@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from rovermarl import errors
-from rovermarl.env import make_world, reference
+from rovermarl.env import make_world
 from rovermarl.env.kernel import fused
 from rovermarl.vector import VectorEnv
+from tests import reference
 from tests.conftest import ROOT
 
 sys.path.insert(0, str(ROOT)) if str(ROOT) not in sys.path else None

@@ -146,3 +146,16 @@ def test_random_pois_draws_its_pois_in_the_ring_per_episode_and_senses_them():
     np.testing.assert_allclose(obs[..., 0:3 * world.n_pois:3], np.minimum(d / world.sensor_range, 1), atol=1e-12)
     with pytest.raises(ValueError, match="layout"):
         world.evaluate(np.zeros((world.n_rovers, world.n_params)), ic[:2])
+
+
+@pytest.mark.parametrize("path", ["examples/obstacles/obstacles.py", "examples/random_pois/random_pois.py",
+                                  "examples/moving_pois/moving_pois.py", "tests/data/battery/battery.py",
+                                  "benchmarks/twin_world.py"])
+def test_a_plugin_imports_only_the_public_worlds_module(path):
+    """World authors import everything from rovermarl.worlds: no plug-in reaches into rovermarl.env or the kernel."""
+    import ast
+    tree = ast.parse((ROOT / path).read_text())
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and n.module]
+    assert "rovermarl.worlds" in names and not [m for m in names if m.startswith("rovermarl") and
+                                                 m != "rovermarl.worlds"], names

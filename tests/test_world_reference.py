@@ -1,4 +1,4 @@
-"""The World (compiled kernel) against rovermarl.env.reference, the SPEC in plain numpy, on random scenes."""
+"""The World (compiled kernel) against tests/reference.py, the SPEC in plain numpy, on random scenes."""
 
 import math
 
@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rovermarl import make_world
-from rovermarl.env import reference
+from tests import reference
 
 WORLDS = {"solo": make_world("solo"), "duo": make_world("duo")}
 

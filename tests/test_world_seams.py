@@ -9,7 +9,7 @@ import pytest
 import yaml
 
 from rovermarl import errors
-from rovermarl.env import World, make_world
+from rovermarl.env import World, make_world, trial
 from rovermarl.env.kernel import record
 from rovermarl.env.params import Params
 from rovermarl.policy import MLP
@@ -67,7 +67,7 @@ def test_derived_state_is_cached_properties_only(setup):
 
 def test_the_kernel_record_has_one_builder():
     w = make_world("duo", dtype="float32", reward="any_step")
-    again = record.build(w)
+    again = record.build(w, w.task, w.obs_blocks(), w.layout_dim, w.kernel_extra(), trial.state_dims(w))
     for a, b in zip(w.kernel, again, strict=True):
         if isinstance(a, np.ndarray):
             assert a.dtype == b.dtype and np.array_equal(a, b)

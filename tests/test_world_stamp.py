@@ -15,10 +15,7 @@ from tests.conftest import ROOT
 
 PLUGIN = '''from dataclasses import dataclass
 
-from rovermarl.env import World
-from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.stages import move_flat
-from rovermarl.jit import njit
+from rovermarl.worlds import Hooks, move_flat, njit, World
 
 
 @njit(cache=True)

@@ -26,12 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rovermarl import errors
-from rovermarl.env import State, World
-from rovermarl.env.kernel.episode_pois import final_only, no_acc, no_step, reward_at, sense_at
-from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.math import FAST
-from rovermarl.jit import njit
+from rovermarl.worlds import FAST, Hooks, State, World, errors, final_only, njit, no_acc, no_step, reward_at, sense_at
 
 
 @njit(inline="always", **FAST)

@@ -24,13 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from rovermarl import errors
-from rovermarl.env import World
-from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.math import FAST, like
-from rovermarl.env.kernel.rules import bearing, reading
-from rovermarl.env.kernel.stages import move_flat, sense_flat
-from rovermarl.jit import njit
+from rovermarl.worlds import FAST, Hooks, World, bearing, errors, like, move_flat, njit, reading, sense_flat
 
 
 @njit(inline="always", **FAST)

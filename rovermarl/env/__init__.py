@@ -1,10 +1,10 @@
-"""Rover world: geometry (``world``), starts and initial conditions (``starts``), what a world plug-in overrides
-(``scenario``), the compiled kernel in stages and hooks (``kernel``), and the SPEC in plain numpy (``reference``, the
-tests' oracle)."""
+"""Rover world: the World (``world``) and its parts (``params``, ``task``, ``starts``, the kernel record), a plug-in's
+build-time trial (``trial``), and the compiled kernel in stages and hooks (``kernel``). A world plug-in imports
+:mod:`rovermarl.worlds`."""
 
 from rovermarl.env.make import make_world
-from rovermarl.env.scenario import State
 from rovermarl.env.starts import InitialConditions
+from rovermarl.env.trial import State
 from rovermarl.env.world import Rollout, World
 
 __all__ = ["InitialConditions", "Rollout", "State", "World", "make_world"]

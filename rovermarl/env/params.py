@@ -1,6 +1,7 @@
 """A world's configuration: its parameters, the one home of their defaults, their checks, and the config they come from.
 
-:class:`Params` holds the parameters of the paper's world as frozen dataclass fields. Their defaults are read from
+:class:`Params` (the config part of :class:`~rovermarl.env.World`, its base: its fields are the World's keywords)
+holds the parameters of the paper's world as frozen dataclass fields. Their defaults are read from
 ``conf/env/rovers.yaml`` (the ``env`` group's default option, shipped with the package): that file is their one home,
 so the command line, :func:`~rovermarl.env.make_world` and ``World(coupling=..., value=...)`` agree. The policy's
 configuration is its own object, :class:`~rovermarl.policy.MLP` (``policy.hidden``). :func:`keywords` reads a
@@ -36,7 +37,7 @@ def yaml_defaults(cls: type) -> type:
 class Params:
     """The paper's world's parameters (SPEC sections 1-3, 5 and 8; each documented in ``conf/env/rovers.yaml``), checked
     when built: a bad value raises :class:`~rovermarl.errors.ConfigError`, one line naming its config key. A plug-in's
-    own fields follow these and are checked by its :meth:`~rovermarl.env.scenario.Scenario.check`."""
+    own fields follow these and are checked by its ``check`` (``World.check``)."""
 
     coupling: tuple[int, ...]
     value: tuple[float, ...]
@@ -83,7 +84,6 @@ class Params:
         errors.choice("env.speed", self.speed, SPEEDS)
         errors.choice("env.poi_type", self.poi_type, POI_TYPES)
         errors.choice("env.dtype", self.dtype, DTYPES)
-        self.check()                                        # the plug-in's own (Scenario.check)
         object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))   # fields, as given: normalised
         object.__setattr__(self, "value", tuple(float(v) for v in self.value))
 

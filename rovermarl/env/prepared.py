@@ -35,6 +35,17 @@ _POOL: dict[int, tuple[int, ThreadPoolExecutor]] = {}   # pid: (threads, this pr
 _POOL_LOCK = threading.Lock()
 
 
+class Rollout(NamedTuple):
+    """Trajectories of E episodes: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,), and the episodes' layout
+    (E, K) (``InitialConditions.layout``; K = 0 for the paper's world), so that counterfactual teams can be
+    re-scored on each episode's own POIs (``World.episode_return``)."""
+
+    xy: np.ndarray
+    heading: np.ndarray
+    returns: np.ndarray
+    layout: np.ndarray
+
+
 class Prepared(NamedTuple):
     """Initial conditions as the kernel reads them (``World.prepare``): ``ic`` the checked initial conditions
     (float64), ``xy`` (E, N, 2) and ``heading`` (E, N) in ``env.dtype``, C-ordered, writeable copies (later changes

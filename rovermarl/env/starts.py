@@ -1,8 +1,10 @@
 """Where the rovers start: each rover's start square and heading sector, a run's initial conditions (SPEC section 5)
-and its held-out ones. :class:`Starts` is a base of :class:`~rovermarl.env.World` (``self`` has its fields)."""
+and its held-out ones. :class:`Starts` is a part a :class:`~rovermarl.env.World` holds (``World.starts``)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import NamedTuple
 
 import numpy as np
@@ -12,18 +14,24 @@ from rovermarl.env.streams import RunStreams
 
 class InitialConditions(NamedTuple):
     """E episodes' starts: xy (E, N, 2), heading (E, N), and layout (E, K): what else a world draws per episode
-    (:meth:`World.draw_layout`; K = 0 for the paper's world). Any (xy, heading) pair is read with an empty layout."""
+    (``World.draw_layout``; K = 0 for the paper's world). Any (xy, heading) pair is read with an empty layout."""
 
     xy: np.ndarray
     heading: np.ndarray
     layout: np.ndarray
 
 
-
+@dataclass(frozen=True)
 class Starts:
-    """The initial conditions of a world: ``n_rovers``, ``start_box`` and ``episodes`` are the World's fields."""
+    """The initial conditions of N = ``n_rovers`` rovers in ``start_box`` squares, ``episodes`` E by default;
+    ``draw_layout(rng, n) -> (n, K)`` draws what else a world draws per episode, after the starts
+    (``World.draw_layout``)."""
 
-    # ---- initial conditions -------------------------------------------------------------------
+    n_rovers: int
+    start_box: float
+    episodes: int
+    draw_layout: Callable[[np.random.Generator, int], np.ndarray]
+
     @property
     def start_rotation(self) -> np.ndarray:
         """(N,): rover ``i``'s start square is ``[0, start_box]^2`` turned by this angle about the origin, so that

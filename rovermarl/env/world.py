@@ -1,36 +1,27 @@
-"""The multi-rover world (SPEC sections 1-3, 5): rollouts and team evaluation, on a world assembled from its seams.
+"""The multi-rover world (SPEC sections 1-3, 5): rollouts and team evaluation, on a world made of parts.
 
-:class:`World` is one frozen dataclass whose bases each hold one job:
+:class:`World` is a frozen dataclass. Its fields are its configuration (:class:`~rovermarl.env.params.Params`, its one
+base: the parameters, their defaults from ``conf/env/rovers.yaml`` and their checks); the rest are parts it holds,
+each built from what it is given, computed when first read and kept (``functools.cached_property``):
 
-- :class:`~rovermarl.env.params.Params`: the parameters (fields; defaults from ``conf/env/rovers.yaml``, the policy's
-  configuration :class:`~rovermarl.policy.MLP`) and their checks;
-- :class:`~rovermarl.env.task.Task`: the POIs, the sensors' POI types, the observation size, the reward of positions;
-- :class:`~rovermarl.env.starts.Starts`: initial conditions; :class:`~rovermarl.env.scenario.Scenario`: what a world
-  plug-in overrides;
-- :func:`rovermarl.env.kernel.record.build`: the kernel's record of the world (``World.kernel``).
+- ``task``: :class:`~rovermarl.env.task.Task`, the POIs, their sensor types and the scoring of positions;
+- ``starts``: :class:`~rovermarl.env.starts.Starts`, the initial conditions;
+- ``kernel``: :class:`~rovermarl.env.kernel.KernelWorld`, the record the compiled rollout reads
+  (:func:`rovermarl.env.kernel.record.build`); ``compiled``: the module of the world's compiled functions.
 
-What is derived from the parameters is computed when first read and kept (``functools.cached_property``); building a
-World reads the kernel record once, so a bad plug-in fails at construction. World itself holds the calls that run the
-compiled rollout: :meth:`World.evaluate`, :meth:`World.evaluate_many`, :meth:`World.rollout`, :meth:`World.observe`.
-
-The world options of SPEC section 8 (other readings of the paper) are fields and keys of the ``env`` group:
-``reward`` (final | any_step | best_step | mean_step), ``speed`` (affine | clip) and ``poi_type``
-(coupling | sign | value). The defaults are the SPEC reading.
-
-:class:`World` is also the base of a world plug-in: a subclass in a module of its own, named by ``env._target_`` in
-its yaml, adds fields (its parameters), may override the methods of :class:`~rovermarl.env.scenario.Scenario`, and
-sets ``hooks`` to its compiled hooks (:mod:`rovermarl.env.kernel.hooks`); the rollout, the environments and the
-recordings follow (``docs/WORLDS.md``).
+No part calls another: World passes each what it needs. World holds the calls that run the compiled rollout
+(:meth:`World.evaluate`, :meth:`World.evaluate_many`, :meth:`World.rollout`, :meth:`World.observe`) and the members
+a world plug-in may set, with the paper's values (``docs/WORLDS.md``, the one place of the contract). Building a World
+builds its kernel record and runs a plug-in's trial (:mod:`rovermarl.env.trial`): a bad plug-in fails there.
 """
 
 from __future__ import annotations
 
-import os
-import sys
+import math
 from collections.abc import Collection
 from dataclasses import dataclass
 from functools import cached_property
-from typing import ClassVar, NamedTuple
+from typing import ClassVar
 
 import numpy as np
 
@@ -40,10 +31,10 @@ from rovermarl.env.kernel import record
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.env.params import DTYPES, Params, keywords
-from rovermarl.env.prepared import Prepared, final_in, genomes_in, score_teams, warn_insane, workers_in
-from rovermarl.env.scenario import Scenario
+from rovermarl.env.prepared import Prepared, Rollout, final_in, genomes_in, score_teams, warn_insane, workers_in
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
+from rovermarl.env.trial import State, check_sense, check_state, plugin_homes, state_dims
 from rovermarl.jit import name_compiled, say_if_cold
 
 _NO_FINAL = np.empty((0, 1, 2))
@@ -52,49 +43,142 @@ _NO_LAYOUT = np.empty((0, 0))
 __all__ = ["DTYPES", "Rollout", "World", "score", "world_class"]
 
 
-class Rollout(NamedTuple):
-    """Trajectories of E episodes: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,), and the episodes' layout
-    (E, K) (:attr:`InitialConditions.layout`; K = 0 for the paper's world), so that counterfactual teams can be
-    re-scored on each episode's own POIs (:meth:`World.episode_return`)."""
-
-    xy: np.ndarray
-    heading: np.ndarray
-    returns: np.ndarray
-    layout: np.ndarray
-
-
 @dataclass(frozen=True, eq=False)
-class World(Params, Task, Starts, Scenario):
+class World(Params):
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
     ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
     the other readings of :data:`~rovermarl.env.kernel.REWARDS` score every step, SPEC section 8).
 
+    The world options of SPEC section 8 are fields: ``reward`` (final | any_step | best_step | mean_step), ``speed``
+    (affine | clip) and ``poi_type`` (coupling | sign | value); the defaults are the SPEC reading.
+
     >>> make_world("duo", reward="any_step", speed="clip", poi_type="sign").poi_sensor_type.tolist()[:3]
     [1.0, -1.0, -1.0]
     """
 
-    hooks: ClassVar[Hooks] = ROVERS          # the compiled hooks of the world (rovermarl.env.kernel.hooks)
+    # ---- what a world plug-in may set (docs/WORLDS.md): these members, with the paper's values ------------------
+    hooks: ClassVar[Hooks] = ROVERS             # the compiled hooks of the world (rovermarl.env.kernel.hooks)
+    state: ClassVar[tuple[State, ...]] = ()     # the per-episode state the hooks read and write (none: the paper's)
+    layout_dim = 0      # K: numbers per episode that draw_layout adds to the initial conditions
+    fixed_pois = True   # the POIs are poi_xy in every episode: the occupancy and C8 measures read them
+                        # (the behaviour observer leaves those measures out of a world that sets False)
 
+    def check(self) -> None:
+        """Check the plug-in's own fields (raise ``errors.ConfigError``: one line naming key, value and what is
+        allowed); called after the parameters' checks, before the kernel record is built."""
+
+    def kernel_extra(self) -> tuple:
+        """The plug-in's own arrays and numbers for its hooks (``KernelWorld.extra``), in the kernel's precision
+        where they meet the rovers' state (``np.dtype(self.dtype)``). The paper's world: none."""
+        return ()
+
+    def draw_layout(self, rng: np.random.Generator, n: int) -> np.ndarray:
+        """(n, K): what the world draws per episode after the rovers' starts (``layout_dim`` K numbers each), from
+        the initial conditions' generator."""
+        return np.empty((n, self.layout_dim))
+
+    def obs_blocks(self) -> list[tuple[str, np.ndarray, np.ndarray]]:
+        """The observation's blocks in order: (name, low (size,), high (size,)). The paper's: 3 numbers per POI
+        (distance / range, bearing / pi, type), then 2 per other rover; a plug-in appends its own sensors' blocks
+        (and writes them after the paper's rows in its ``sense`` hook).
+
+        >>> [(name, low.size) for name, low, high in make_world("solo").obs_blocks()]
+        [('poi', 30), ('rover', 8)]
+        """
+        kinds = float(np.abs(self.task.sensor_type).max(initial=1.0))
+        poi_high = np.tile([1.0, 1.0, kinds], self.n_pois)
+        return [("poi", -poi_high, poi_high), ("rover", -np.ones(2 * self.n_rovers), np.ones(2 * self.n_rovers))]
+
+    def poi_positions(self, layout: np.ndarray | None = None) -> np.ndarray:
+        """(P, 2): the POIs of an episode whose layout is ``layout`` (K,); the paper's: fixed, ``poi_xy``."""
+        return self.poi_xy
+
+    def poi_track(self, layout: np.ndarray | None = None) -> np.ndarray | None:
+        """(T+1, P, 2): where the POIs of an episode (``layout`` (K,)) are at each step, for a world whose POIs
+        move (the recording draws them there); None: they stay at :meth:`poi_positions` (the paper's)."""
+        return None
+
+    def draw(self, ax, layout: np.ndarray | None = None) -> None:
+        """Draw what the plug-in adds to the world (obstacles, ...) on matplotlib axes, for an episode's ``layout``."""
+
+    def log_static(self, rec, layout: np.ndarray | None = None) -> None:
+        """Log what the plug-in adds to the world into the Rerun recording stream ``rec`` (under ``world/``)."""
+
+    def team_return(self, xy: np.ndarray) -> np.ndarray:
+        """Team return of positions xy (..., M, 2) -> (...,) (:meth:`Task.team_return
+        <rovermarl.env.task.Task.team_return>`); a world whose reward needs an episode's layout raises."""
+        return self.task.team_return(xy)
+
+    @property
+    def max_return(self) -> float:
+        """The best team return an episode can give (:attr:`Task.max_return <rovermarl.env.task.Task.max_return>`):
+        EXP3's reward scale and the top of the figures' score levels."""
+        return self.task.max_return
+
+    # ---- the parts ---------------------------------------------------------------------------------------------
     def __post_init__(self):
-        super().__post_init__()                 # the parameters' checks, then the plug-in's (check)
+        super().__post_init__()                 # the parameters' checks
+        self.check()                            # the plug-in's own
         self.kernel                             # noqa: B018 -- built now: a bad plug-in fails here, in one line
         if self.hooks != ROVERS or self.state:           # a plug-in's hooks: one line naming its file if they fail
-            with errors.plugin_errors(self.plugin_homes()):
-                self.check_sense()
-                self.check_state()                      # every hook tried once, the state guarded
+            with errors.plugin_errors(plugin_homes(self)):
+                check_sense(self)
+                check_state(self)                       # every hook tried once, the state guarded
 
-    def plugin_homes(self) -> list[str]:
-        """The directories of the world's own code outside rovermarl (its class's module and its hooks'), where
-        :func:`errors.plugin_line` looks for the place of an error."""
-        modules = {type(self).__module__, *(getattr(h, "py_func", h).__module__ for h in self.hooks)}
-        files = [getattr(sys.modules.get(m), "__file__", None) for m in modules if not m.startswith("rovermarl.")]
-        return sorted({os.path.dirname(os.path.realpath(f)) for f in files if f})
+    @cached_property
+    def task(self) -> Task:
+        """The POIs and the scoring of positions."""
+        return Task.of(self.coupling, self.value, self.poi_distance, self.poi_type, self.obs_radius, self.reward,
+                       self.n_rovers)
+
+    @cached_property
+    def starts(self) -> Starts:
+        """The initial conditions (the plug-in's ``draw_layout`` after the rovers' starts)."""
+        return Starts(self.n_rovers, self.start_box, self.episodes, self.draw_layout)
 
     @cached_property
     def kernel(self) -> kernel.KernelWorld:
         """The world as the kernel reads it, passed whole (:func:`rovermarl.env.kernel.record.build`)."""
-        return record.build(self)
+        return record.build(self, self.task, self.obs_blocks(), self.layout_dim, self.kernel_extra(),
+                            state_dims(self))
+
+    @property
+    def poi_xy(self) -> np.ndarray:
+        """(P, 2) float64: POI ``j`` at angle ``2*pi*j/P`` on the circle of radius ``poi_distance``."""
+        return self.task.poi_xy
+
+    @property
+    def poi_sensor_type(self) -> np.ndarray:
+        """(P,): the third sensor number of each POI in range (``env.poi_type``: ``c - 1``, the sign ``-1`` for
+        ``c = 1`` and ``+1`` otherwise, or the POI's value)."""
+        return self.task.sensor_type.copy()
+
+    @property
+    def n_pois(self) -> int:
+        return len(self.coupling)
+
+    @cached_property
+    def obs_dim(self) -> int:
+        """D, the sum of the ``obs_blocks``: 3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers) in the
+        paper's world."""
+        return sum(low.size for _, low, _ in self.obs_blocks())
+
+    @property
+    def w_max(self) -> float:
+        return math.radians(self.w_max_deg)
+
+    def initial_conditions(self, seed=0, n: int | None = None) -> InitialConditions:
+        """``n`` (default ``episodes``) starts: ``Starts.initial_conditions``."""
+        return self.starts.initial_conditions(seed, n)
+
+    def run_ic(self, seed: int, generation: int = 0) -> InitialConditions:
+        """The initial conditions run ``seed`` is scored on: ``Starts.run_ic``."""
+        return self.starts.run_ic(seed, generation)
+
+    def heldout_ic(self, seed: int, n: int = 256) -> InitialConditions:
+        """Run ``seed``'s held-out initial conditions: ``Starts.heldout_ic``."""
+        return self.starts.heldout_ic(seed, n)
 
     @cached_property
     def _float(self) -> type:
@@ -119,11 +203,10 @@ class World(Params, Task, Starts, Scenario):
 
     @classmethod
     def from_config(cls, cfg, trust: bool | Collection[str] = False, cls_: type[World] | None = None) -> World:
-        """Build from a composed config with ``setup``, ``env`` and ``policy`` sections (:func:`params.keywords
-        <rovermarl.env.params.keywords>`): the class ``env._target_`` names (this one by default), or ``cls_`` when
-        given (a class the caller holds: ``make_world``). Only rovermarl's own world unless ``trust``
-        (:func:`world_class`): the training path trusts the config it composed from the command line; a read path of
-        results never does unless ``--trust-config`` is given. ``cfg`` may be a plain dict."""
+        """Build from a composed config (or a plain dict) with ``setup``, ``env`` and ``policy`` sections
+        (``params.keywords``): the class ``env._target_`` names, or ``cls_`` (a class the caller holds: ``make_world``).
+        A plug-in only with ``trust`` (:func:`world_class`): the training path trusts the config it composed; a read
+        path of results only with ``--trust-config``."""
         env = cfg["env"]
         cls = cls_ or world_class(env.get("_target_") if hasattr(env, "get") else None, trust)
         return cls(**keywords(cfg, cls))
@@ -143,10 +226,11 @@ class World(Params, Task, Starts, Scenario):
         out = np.empty(heading.shape + (self.obs_dim,))
         flat = xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers)
         if self.hooks == ROVERS:
-            kernel.sense_libm(*flat, self.poi_xy, self._type, float(self.sensor_range),
+            kernel.sense_libm(*flat, self.poi_xy, self.task.sensor_type, float(self.sensor_range),
                               out.reshape(-1, self.n_rovers, self.obs_dim))
         else:
-            k = self.kernel._replace(poi_xy=self.poi_xy, poi_type=self._type, sensor_range=float(self.sensor_range),
+            k = self.kernel._replace(poi_xy=self.poi_xy, poi_type=self.task.sensor_type,
+                                     sensor_range=float(self.sensor_range),
                                      layout=layout.reshape(flat[1].shape[0], self.layout_dim))
             self.compiled.observe(*flat, k, self.compiled.state_of(flat[0], k),
                                   out.reshape(-1, self.n_rovers, self.obs_dim))
@@ -169,11 +253,9 @@ class World(Params, Task, Starts, Scenario):
     # ---- rollouts -----------------------------------------------------------------------------
     def prepare(self, ic) -> Prepared:
         """Initial conditions ``ic`` (:class:`InitialConditions`, or xy (E, N, 2), heading (E, N)) checked and in the
-        kernel's precision once: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method takes ``ic``
-        (:meth:`evaluate`, :meth:`returns`, :meth:`evaluate_many`, :meth:`rollout`, :meth:`kernel_args`); each call then
-        checks and converts only the genomes. A snapshot: later changes to ic's arrays are not seen. Plain ``ic`` is
-        prepared on every call instead (a few microseconds: ``docs/PERFORMANCE.md``). No episode, or nan or inf in
-        xy or heading, is refused in one line (ValueError)."""
+        kernel's precision once, a snapshot: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method
+        takes ``ic``, and each call checks and converts only the genomes (plain ``ic`` is prepared on every call, a
+        few microseconds). No episode, or nan or inf in xy or heading, is refused in one line (ValueError)."""
         if type(ic) is Prepared:
             return ic if ic.world is self else self.prepare(ic.ic)
         xy0, h0, layout = (a.copy() for a in self._batch(*ic))
@@ -189,7 +271,7 @@ class World(Params, Task, Starts, Scenario):
     def rollout(self, genomes: np.ndarray, ic) -> Rollout:
         """Full trajectories of a team: genomes (N, P), ic (:class:`InitialConditions`, or xy (E, N, 2), heading
         (E, N), or :meth:`prepare`'s)."""
-        p, genomes = self._prepared(ic), self._team(genomes)
+        p, genomes = self._prepared(ic), genomes_in(genomes, self._team_shape, "genomes")
         e = p.episodes
         traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
                        np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e), p.ic.layout.copy())
@@ -237,10 +319,9 @@ class World(Params, Task, Starts, Scenario):
         return np.ascontiguousarray(np.broadcast_to(genome, (self.n_rovers, self.n_params)))
 
     def kernel_args(self, ic) -> tuple:
-        """The arguments of the world's ``compiled.rollout`` after the genomes and before its outputs: the initial
-        conditions' xy (E, N, 2) and heading (E, N), checked and contiguous, then the world's
-        :class:`~rovermarl.env.kernel.KernelWorld` with their layout, e.g. for a compiled loop that evaluates teams
-        itself. Floats are in ``env.dtype`` (the genomes must be too)."""
+        """The arguments of ``compiled.rollout`` between the genomes and its outputs (for a compiled loop that
+        evaluates teams itself): xy (E, N, 2), heading (E, N) and the :class:`~rovermarl.env.kernel.KernelWorld`
+        with their layout, floats in ``env.dtype`` (the genomes' too)."""
         p = self._prepared(ic)
         return p.xy, p.heading, p.kernel
 
@@ -261,9 +342,6 @@ class World(Params, Task, Starts, Scenario):
         if not sane:
             warn_insane(np.zeros(1, dtype=bool), returns[None])
         return f, returns
-
-    def _team(self, genomes):
-        return genomes_in(genomes, self._team_shape, "genomes")
 
     def _batch(self, xy, heading, layout=None):
         """Checked, contiguous float64 (xy (..., N, 2), heading (..., N), layout (..., K)); no layout: K = 0 only."""
@@ -312,5 +390,5 @@ def world_class(target: str | None, trust: bool | Collection[str] = False) -> ty
     except Exception as e:
         raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: {e})") from None
     if not (isinstance(cls, type) and issubclass(cls, World)):
-        raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.env.World")
+        raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.worlds.World")
     return cls

@@ -181,7 +181,7 @@ def _scene(rec, rr, world) -> None:
     ring = world.obs_radius * np.stack([np.cos(theta), np.sin(theta)], axis=1)
     rec.log("world/poi_radius", rr.LineStrips2D([p + ring for p in world.poi_xy], colors=colors, radii=-1.5,
                                                 draw_order=10.0), static=True)
-    rec.log("world/start_boxes", rr.LineStrips2D(world.start_squares, colors=palette.rover_rgb(world.n_rovers),
+    rec.log("world/start_boxes", rr.LineStrips2D(world.starts.start_squares, colors=palette.rover_rgb(world.n_rovers),
                                                  radii=-1.0, draw_order=20.0), static=True)
     world.log_static(rec)                                                        # a plug-in's own
 

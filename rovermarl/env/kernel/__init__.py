@@ -21,24 +21,12 @@ recompiles its callers on the next run; no ``__pycache__`` needs deleting.
 
 from rovermarl.env.kernel import target  # first: it sets numba's target features (512-bit vectors on AVX-512)
 from rovermarl.env.kernel.fused import rollout
-from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh, wrap
+from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh
 from rovermarl.env.kernel.record import KernelWorld
-from rovermarl.env.kernel.reward import (
-                                         fold,
-                                         max_return,
-                                         observers,
-                                         pairwise_sum,
-                                         payout,
-                                         reward,
-                                         score,
-                                         settle,
-                                         start,
-                                         switched,
-)
-from rovermarl.env.kernel.rules import FINAL, POI_TYPES, REWARDS, SPEEDS, bearing, poi_of, reading, speed, turn, within
+from rovermarl.env.kernel.reward import max_return, observers, pairwise_sum, payout, reward, score, switched
+from rovermarl.env.kernel.rules import REWARDS, bearing, poi_of
 from rovermarl.env.kernel.stages import act, move, sense, sense_libm
 
-__all__ = ["FINAL", "POI_TYPES", "REWARDS", "SPEEDS", "KernelWorld", "act", "atan2", "bearing", "fold", "max_return",
-           "move", "observers", "pairwise_sum", "payout", "poi_of", "reading", "reward", "rollout", "score", "sense",
-           "sense_libm", "settle", "sincos", "sincos_all", "speed", "start", "switched", "target", "tanh", "turn",
-           "within", "wrap"]
+__all__ = ["REWARDS", "KernelWorld", "act", "atan2", "bearing", "max_return", "move", "observers", "pairwise_sum",
+           "payout", "poi_of", "reward", "rollout", "score", "sense", "sense_libm", "sincos", "sincos_all", "switched",
+           "target", "tanh"]

@@ -1,18 +1,13 @@
 """The kernel of a world plug-in: :mod:`~rovermarl.env.kernel.fused` compiled around the plug-in's hooks.
 
-numba compiles a call to another compiled function into its caller, and caches the result only if that function
-is a global of the caller's module (a function passed as an argument is recompiled in every process). So a world
-whose hooks or state are not the rover world's gets a module of its own, made from ``fused.py`` as a template by
-:func:`fill` (each substitution asserted: a template that no longer matches stops in one line, never runs the paper's
-hooks): its ``# hooks`` import imports the plug-in's functions instead, and a ``state_new`` is written from the
-world's declared state (``World.state``). Named by its imports, its state and the files of its hooks' modules (two
-copies of a plug-in in two folders get two kernels), it is written into a folder of its own beside numba's cache
-(``NUMBA_CACHE_DIR``, else a per-user cache dir: never into rovermarl's package) and imported from there. Its first
-line carries a hash of the sources its own world uses (:func:`hook_sources`: every module that provides a hook and
-the plug-in modules they reach), so an edit of any of them rewrites it and numba recompiles it, and nothing of
-another world does (:mod:`rovermarl.jit` stamps the rest). The record it reads,
-:class:`~rovermarl.env.kernel.record.KernelWorld`, is one class for every copy: numba's cache index pickles it by
-name, so one plug-in may be imported under two module paths on one cache.
+numba caches a compiled call of another function only if that function is a global of the caller's module, so a
+world whose hooks or state are not the rover world's gets a module of its own: ``fused.py`` as a template, filled by
+:func:`fill` (each substitution asserted: a template that no longer matches stops in one line), its ``# hooks``
+import replaced by the plug-in's functions and a ``state_new`` written from ``World.state``. It is written into a
+folder of its own beside numba's cache (:func:`cache_root`, never rovermarl's package), named by its imports, its
+state and its hooks' files, and stamped by the sources its hooks reach (:func:`hook_sources`), so an edit of any of
+them recompiles it and nothing of another world (``docs/WORLDS.md``, "When you edit a world"). Every copy types the
+record as the one :class:`~rovermarl.env.kernel.record.KernelWorld` (numba's cache index pickles it by name).
 """
 
 from __future__ import annotations

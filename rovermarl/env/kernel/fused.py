@@ -134,7 +134,7 @@ def observe(xy, heading, w, s, out):
 @njit(**FAST)
 def sensed_rows(xy, heading, w, s, extra):
     """How many rows of the observation the hook ``sense`` fills: it writes into D + ``extra`` rows of NaN, and a row
-    counts when every entry of it is a number. xy (E, N, 2), heading (E, N) (``World.check_sense``)."""
+    counts when every entry of it is a number. xy (E, N, 2), heading (E, N) (``trial.check_sense``)."""
     n_ep, n = heading.shape
     ne = n * n_ep
     state = flat_pose(xy, heading, 5)
@@ -220,7 +220,7 @@ def env_start(w, n_ep):
 
 @njit(cache=True)
 def trial(hook, x, y, heading, sin_h, cos_h, a0, a1, n, w, s, obs, xy, acc, returns):
-    """One call of the world's hook number ``hook`` (``Scenario.check_state``'s trial run, which checks the state
+    """One call of the world's hook number ``hook`` (``trial.check_state``'s trial run, which checks the state
     ``s`` between calls): 0 ``begin``, 1 ``sense``, 2 ``move``, 3 ``tick``, 4 ``stepwise``, 5 ``score_step``,
     6 ``score_end``, on the flat layout; returns what ``sense`` or ``stepwise`` return (False for the others)."""
     if hook == 0:

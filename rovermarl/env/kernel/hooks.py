@@ -1,28 +1,10 @@
 """The paper's rover world as kernel hooks: what :mod:`~rovermarl.env.kernel.fused` calls each step (numba).
 
 A world is its hooks (``World.hooks``, a :class:`Hooks`). These are the rover world's (SPEC sections 1-3, 8), built
-on its stages and reward; a world plug-in passes its own functions with the same signatures (``docs/ARCHITECTURE.md``,
-"Adding a world"), and :mod:`~rovermarl.env.kernel.compose` compiles the rollout around them. The flat layout is
-:mod:`~rovermarl.env.kernel.stages`'s: x, y, heading, sin_h, cos_h, a0, a1 (N*E,) rover-major (pair ``q = i*E + e``),
-obs (D*N*E,) feature-major; ``w`` is the world's :class:`~rovermarl.env.kernel.record.KernelWorld`; ``s`` the
-world's per-episode state, a tuple of arrays in the order ``World.state`` declares them (per rover (N*E, width),
-row ``q``; per episode (E, width), row ``e = q % E``), allocated per call and empty for a world without state.
-``docs/WORLDS.md`` gives a worked example of each hook.
-
-- ``begin(x, y, n, w, s)``: fill the state at the episode's start (the rovers at x, y; ``w.layout`` (E, K));
-- ``sense(x, y, sin_h, cos_h, n, w, s, obs) -> bool``: fill obs; True when the sensing took the ranged path (then,
-  with ``finite``, the MLP leaves out the tanh's NaN case; return False if unsure);
-- ``move(x, y, heading, sin_h, cos_h, a0, a1, w, s)``: one step of motion in place (sin_h, cos_h follow heading);
-- ``tick(x, y, n, w, s)``: after each move, the state's own step from the new positions (also run when
-  trajectories are re-scored, ``returns_of``);
-- ``score_start(w, n_ep) -> acc``: the reward's state before the first step (any tuple of arrays);
-- ``stepwise(w) -> bool``: whether ``score_step`` runs after every step (False for a reward of the final positions);
-- ``score_step(w, x, y, xy, acc, s)``: after every step where ``stepwise`` (xy (E, N, 2) float64 scratch);
-- ``score_end(w, xy, acc, returns, s)``: the returns (E,) from the final positions xy (E, N, 2) float64 and acc;
-- ``finite(genomes, w) -> bool``: every sum of the MLP is finite on ranged steps (False when unsure).
-
-The rows of the observation the MLP reads follow from ``World.obs_blocks`` (``w.rows``), and the state's arrays
-from ``World.state``: :mod:`~rovermarl.env.kernel.compose` writes ``state_new`` from that declaration.
+on its stages and reward; a world plug-in passes its own functions with the same signatures, and
+:mod:`~rovermarl.env.kernel.compose` compiles the rollout around them. Each hook's signature, the flat layout it
+reads (pair ``q = i*E + e``; ``w`` the :class:`~rovermarl.env.kernel.record.KernelWorld`, ``s`` the declared state)
+and a worked example are in ``docs/WORLDS.md``, the one place of the plug-in contract.
 """
 
 from __future__ import annotations

@@ -7,10 +7,12 @@ generated module would be looked up under that module's name in every later proc
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
+from rovermarl.env.kernel import checks
 from rovermarl.env.kernel.rules import REWARDS, SPEEDS
 
 
@@ -23,7 +25,7 @@ class KernelWorld(NamedTuple):
     ``env.reward`` in :mod:`~rovermarl.env.kernel.rules`; ``layout`` (E, K) float64, what the initial conditions
     draw per episode besides the rovers' starts (K = 0 for the paper's world; ``World.kernel_for`` sets it per call);
     ``extra``, a tuple of a world plug-in's own arrays and numbers (``World.kernel_extra``; empty here); ``rows``
-    (N, D) int64, each rover's input rows that may be nonzero, increasing, then -1 (``World.input_rows``, from the
+    (N, D) int64, each rover's input rows that may be nonzero, increasing, then -1 (:func:`input_rows`, from the
     observation's declared blocks); ``state_dims`` (S,) int64, the width of each declared state array
     (``World.state``; empty for a world without state).
     """
@@ -47,14 +49,37 @@ class KernelWorld(NamedTuple):
     state_dims: np.ndarray
 
 
-def build(world) -> KernelWorld:
-    """The record of ``world`` (a :class:`~rovermarl.env.World`, ``World.kernel``): its POIs, readings and sizes in
-    the kernel's precision (``env.dtype``), with an empty layout (``World.kernel_for`` sets the initial conditions')
-    and the plug-in's ``kernel_extra``, ``input_rows`` and ``state_dims``."""
-    f = np.dtype(world.dtype).type
+def build(params, task, blocks: list, layout_dim: int, extra: tuple, state_dims: np.ndarray) -> KernelWorld:
+    """The record of a world (``World.kernel``) from its parts: ``params`` (its :class:`~rovermarl.env.params.Params`
+    fields), ``task`` (:class:`~rovermarl.env.task.Task`), the observation's ``blocks`` (``World.obs_blocks``), the
+    layout's width K, the plug-in's ``extra`` (``World.kernel_extra``) and its state's widths; in the kernel's
+    precision (``env.dtype``), with an empty layout (``World.kernel_for`` sets the initial conditions')."""
+    f = np.dtype(params.dtype).type
     return KernelWorld(
-        world.poi_xy.astype(f), world.poi_sensor_type.astype(f), np.array(world.coupling, dtype=np.int64),
-        np.array(world.value, dtype=np.float64), world.steps, world.policy.hidden, world.obs_dim,
-        f(world.sensor_range), f(world.obs_radius), f(world.v_max), f(world.w_max), SPEEDS.index(world.speed),
-        REWARDS.index(world.reward), np.empty((0, world.layout_dim)), world.kernel_extra(), world.input_rows(),
-        world.state_dims())
+        task.poi_xy.astype(f), task.sensor_type.astype(f), task.coupling.copy(), task.value.copy(), params.steps,
+        params.policy.hidden, int(sum(low.size for _, low, _ in blocks)), f(params.sensor_range), f(params.obs_radius),
+        f(params.v_max), f(math.radians(params.w_max_deg)), SPEEDS.index(params.speed), REWARDS.index(params.reward),
+        np.empty((0, layout_dim)), extra, input_rows(blocks, params.n_rovers, task.sensor_type), state_dims)
+
+
+def input_rows(blocks: list, n: int, sensor_type: np.ndarray) -> np.ndarray:
+    """(N, D) int64: each rover's observation rows that may be nonzero, increasing, then -1 (what the MLP reads,
+    ``KernelWorld.rows``). Of the paper's blocks (first, ``poi`` and ``rover``) those ``checks.input_rows`` keeps,
+    then every row of a plug-in's own blocks; every row if its first blocks are not the paper's (reading a row of
+    zeros costs time, never a result).
+
+    >>> from rovermarl.env import make_world
+    >>> make_world("solo").kernel.rows[0, :4].tolist()        # POI 0's type row (type 0) is left out
+    [0, 1, 3, 4]
+    """
+    d = int(sum(low.size for _, low, _ in blocks))
+    paper = [("poi", 3 * sensor_type.size), ("rover", 2 * n)]
+    out = np.full((n, d), -1, dtype=np.int64)
+    if [(name, low.size) for name, low, _ in blocks[:2]] != paper:
+        out[:] = np.arange(d)
+        return out
+    base, k0 = checks.input_rows(n, sensor_type), sum(size for _, size in paper)
+    for i in range(n):
+        mine = np.concatenate([base[i][base[i] >= 0], np.arange(k0, d)])
+        out[i, :mine.size] = mine
+    return out

@@ -8,11 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rovermarl.env import State, World
-from rovermarl.env.kernel.hooks import Hooks
-from rovermarl.env.kernel.math import FAST, like
-from rovermarl.env.kernel.stages import move_flat
-from rovermarl.jit import njit
+from rovermarl.worlds import FAST, Hooks, State, World, like, move_flat, njit
 
 
 @njit(inline="always", **FAST)
