@@ -20,7 +20,7 @@ holds the networks' and Adam's tensors as arrays and the torch and environment r
 
 Training starts and the final team follow ``algorithm=ppo``'s rules (:mod:`rovermarl.sb3`): ``fixed``
 (``evaluation.fresh_ic=false``) starts the environments from the run's own initial conditions in turn, ``fresh``
-from new ones; ``final_team`` is ``last`` or ``best`` (:func:`rovermarl.algorithms.base.keep_best`).
+from new ones; ``final_team`` is ``last`` or ``best`` (:func:`rovermarl.algorithms.final_team.keep_best`).
 
 >>> # python -m rovermarl.train algorithm=mappo budget.agent_steps=1536000 setup=duo   # doctest: +SKIP
 """
@@ -43,7 +43,8 @@ except ModuleNotFoundError as _e:
                               'pip install -e ".[marl]"') from None
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, RunState, SharedActor, generator, train_starts
+from rovermarl.algorithms.base import RunState, generator
+from rovermarl.algorithms.final_team import FINAL_TEAMS, SharedActor, train_starts
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 

@@ -46,7 +46,8 @@ except ModuleNotFoundError as _e:
 import gymnasium
 
 from rovermarl import errors, policy
-from rovermarl.algorithms.base import FINAL_TEAMS, RunState, SharedActor, generator, train_starts
+from rovermarl.algorithms.base import RunState, generator
+from rovermarl.algorithms.final_team import FINAL_TEAMS, SharedActor, train_starts
 from rovermarl.env import World
 from rovermarl.torch_state import adam_arrays, load_adam, seeded
 from rovermarl.vector import DEFAULTS, VectorEnv

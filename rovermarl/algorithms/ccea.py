@@ -31,7 +31,6 @@ import numpy as np
 
 from rovermarl import errors
 from rovermarl.algorithms.base import (
-    FINAL_TEAMS,
     LOOPS,
     Algorithm,
     RunState,
@@ -39,9 +38,9 @@ from rovermarl.algorithms.base import (
     build_operator,
     generator,
     init_range,
-    keep_best,
 )
 from rovermarl.algorithms.credit import CREDITS, credit
+from rovermarl.algorithms.final_team import FINAL_TEAMS, keep_best
 
 
 @dataclass(kw_only=True)
