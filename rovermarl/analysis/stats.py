@@ -6,10 +6,10 @@ ranks after every reached time (Mann-Whitney) and makes a median ``inf`` when ha
 Every function is deterministic (bootstrap resamples come from a fixed seed).
 
 The bootstrap is numpy's resampling with a fixed seed, not ``scipy.stats.bootstrap``: scipy's percentile method
-interpolates between resampled medians (a final-score CI of ``4 [3.97, 4.01]`` where no median can pass 4, on
-results/baselines) and has no way to leave out the resamples whose ratio is undefined (both medians censored, so
-``ratio_ci`` would print ``[nan, nan]`` where it prints ``[0.739, never]`` in results/paper/claims.md). Ours takes the
-``inverted_cdf`` quantile, always a resampled value.
+interpolates between resampled medians (tried on results/baselines: the CCEA row's ``4 [3.97, 4]`` became
+``4 [3.97, 4.01]``), where ours takes the ``inverted_cdf`` quantile, always a resampled value; and it has no way to
+leave out the resamples whose ratio is undefined (both medians censored), so ``ratio_ci`` would print ``[nan, nan]``
+where it prints ``[0.739, never]`` in results/paper/claims.md.
 """
 
 from __future__ import annotations
