@@ -169,3 +169,34 @@ def test_an_error_raised_over_an_interrupt_is_the_interrupt(monkeypatch, tmp_pat
     monkeypatch.setattr(train, "_SIGNALS", [])
     with pytest.raises(ValueError):                                   # no signal: the error is the user's to see
         train.task(None)
+
+
+@pytest.mark.parametrize("sig,raised", [(None, None), (signal.SIGTERM, SystemExit), (signal.SIGINT, KeyboardInterrupt)])
+def test_a_signal_whose_exception_rays_start_swallows_is_raised_again(monkeypatch, sig, raised):
+    """Ray's start can swallow what a signal's handler raised (a SIGTERM during ray.init once ended a launch with
+    exit 0, the signal lost): ensure_ray sees the signal at the C level and raises it again once ray.init returns."""
+    import ray
+
+    from rovermarl.parallel import ray_backend
+
+    def init(**kwargs):                         # the handler raises where Ray's code catches everything
+        if sig is not None:
+            with pytest.raises((SystemExit, KeyboardInterrupt)):
+                os.kill(os.getpid(), sig)
+                time.sleep(5)
+
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(signum))          # Ray's own SIGTERM handler
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", init)
+    cfg = type("RayCfg", (), {"address": None, "num_cpus": 1})()
+    try:
+        if raised is None:
+            ray_backend.ensure_ray(cfg)
+        else:
+            with pytest.raises(raised) as e:
+                ray_backend.ensure_ray(cfg)
+            assert raised is KeyboardInterrupt or e.value.code == signal.SIGTERM
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)

@@ -7,9 +7,11 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import socket
 import sys
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 
@@ -101,11 +103,40 @@ def ensure_ray(ray_cfg) -> None:
     os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "fatal")
     if ray_cfg.address:
         _probe(ray_cfg.address)
-    with _held_stderr():
+    with _held_stderr(), _signals_noted() as seen:
         if ray_cfg.address:
             ray.init(address=ray_cfg.address, **common)
         else:
             ray.init(num_cpus=ray_cfg.num_cpus or os.cpu_count(), include_dashboard=False, **common)
+    if signal.SIGTERM in seen:                      # Ray's start swallowed what its own SIGTERM handler raised
+        raise SystemExit(signal.SIGTERM)
+    if signal.SIGINT in seen:                       # or what the caller's SIGINT handler raised
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _signals_noted():
+    """Yield a list that holds, after the block, the signal numbers delivered during it, as the C-level handler
+    saw them (:func:`signal.set_wakeup_fd`), whatever became of the exception a Python handler raised: a SIGTERM
+    during ``ray.init`` once ended a launch with exit 0, the signal lost (CI, 2026-12-07). Outside the main thread,
+    where no handler runs, the list stays empty."""
+    seen: list[int] = []
+    if threading.current_thread() is not threading.main_thread():
+        yield seen
+        return
+    r, w = socket.socketpair()
+    r.setblocking(False)
+    w.setblocking(False)
+    previous = signal.set_wakeup_fd(w.fileno(), warn_on_full_buffer=False)
+    try:
+        yield seen
+    finally:
+        signal.set_wakeup_fd(previous)
+        with contextlib.suppress(BlockingIOError):
+            while data := r.recv(4096):
+                seen.extend(data)
+        r.close()
+        w.close()
 
 
 @contextlib.contextmanager
