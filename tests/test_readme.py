@@ -27,3 +27,17 @@ def test_the_readme_is_for_users_and_short():
     assert len(text.splitlines()) <= 300
     for target in re.findall(r"\]\(((?:docs|examples|results)/[^)#]+)", text):
         assert (ROOT / target).exists(), target
+
+
+def test_the_readme_config_table_lists_every_option_of_its_groups():
+    """Each group row of the README's config table names every option in conf/<group> (`a`-`b` ranges expanded)."""
+    text = (ROOT / "README.md").read_text()
+    rows = re.findall(r"^\| `(\w+)` \| (.+?) \|", text, flags=re.M)
+    assert len(rows) >= 8
+    for group, cell in rows:
+        listed = set(re.findall(r"`([\w.]+)`", cell))
+        for lo, hi in re.findall(r"`(\w*?\d+)`-`(\w*?\d+)`", cell):
+            stem = lo.rstrip("0123456789")
+            listed |= {f"{stem}{i}" for i in range(int(lo[len(stem):]), int(hi[len(stem):]) + 1)}
+        options = {p.stem for p in (ROOT / "conf" / group).glob("*.yaml")}
+        assert options and options <= listed, f"{group}: not in the README's table: {sorted(options - listed)}"
