@@ -49,3 +49,22 @@ def test_the_python_api_says_once_that_it_compiles(tmp_path):
         assert proc.returncode == 0, proc.stderr[-2000:]
         said.append(proc.stderr.count("numba compiles"))
     assert said == [1, 0]                                      # once when cold, never from the cache
+
+
+
+def test_once_warmed_an_rl_job_is_cold_no_more(tmp_path):
+    """A launch compiles ahead only what the job calls (Algorithm.kernel_calls): once it has, the next launch finds
+    everything cached (an RL learner was warmed at every launch for a batch call it never makes: 3-25 min each)."""
+    pytest.importorskip("torchrl")
+    import os
+    import subprocess
+    import sys
+
+    code = ("from rovermarl.config import compose_config; from rovermarl.runner.compile import cold, warm; "
+            "cfg = compose_config('setup=solo', 'algorithm=mappo', 'budget.agent_steps=96000', 'record=off'); "
+            "print('before', cold(cfg)); warm(cfg); print('after', cold(cfg))")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=1200)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    before, after = proc.stdout.strip().splitlines()[-2:]
+    assert "env_step" in before and after == "after {}", proc.stdout

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from rovermarl.algorithms.base import Algorithm, Series
+from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series
 from rovermarl.algorithms.operators.selectors import KSelector
 from rovermarl.env import make_world
 from rovermarl.errors import ConfigError
@@ -137,3 +137,14 @@ def test_a_state_of_other_fields_is_refused_naming_them():
     assert CC11ESState.from_dict(good).as_dict().keys() == good.keys()
     with pytest.raises(ValueError, match=r"has no field extra; lacks selector$"):
         CC11ESState.from_dict({**{k: v for k, v in good.items() if k != "selector"}, "extra": 1})
+
+
+def test_a_kernel_call_the_world_lacks_is_one_line(monkeypatch):
+    from rovermarl.algorithms.cma import SepCMA
+    from rovermarl.config import compose_config
+    from rovermarl.runner.compile import cold
+
+    monkeypatch.setattr(SepCMA, "kernel_calls", ("evaluate_lots",))
+    with pytest.raises(AlgorithmError, match="^SepCMA.kernel_calls names 'evaluate_lots', not a function of the "
+                                             "world kernel"):
+        cold(compose_config("setup=solo", "algorithm=cma"))

@@ -35,6 +35,7 @@ class RandomSearch(Algorithm):
     """Built from ``random_search.yaml``; its run state is :class:`SearchState`."""
 
     state_type = SearchState
+    kernel_calls = ("evaluate_many",)         # the world kernel's batch call (measure_many): compiled ahead if cold
 
     def __init__(self, world, lam: int = 4, sigma: float = 0.1, init_low: float = -2.0, init_high: float = 2.0):
         super().__init__(world)

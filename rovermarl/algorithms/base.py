@@ -204,12 +204,15 @@ class Algorithm:
     Subclasses set :attr:`series` (in ``__init__`` if it depends on the config) and implement ``_init``,
     ``_advance`` and ``_team``. One that honours ``evaluation.fresh_ic`` (:attr:`Evaluator.fresh`: call
     :meth:`Evaluator.draw` each generation, re-score the parents there) sets :attr:`fresh_ic`; the runner refuses
-    ``evaluation.fresh_ic=true`` for the others.
+    ``evaluation.fresh_ic=true`` for the others. :attr:`kernel_calls` names the world kernel's other functions it
+    calls (``evaluate_many``; ``observe`` and ``env_step`` through :class:`~rovermarl.vector.VectorEnv`), so that a
+    launch compiles them ahead when numba's cache lacks them (:mod:`rovermarl.runner.compile`).
     """
 
     state_type: ClassVar[type[RunState]] = RunState   # the run state's declared type (a subclass names its own)
     series: tuple[Series, ...] = ()
     fresh_ic: bool = False
+    kernel_calls: ClassVar[tuple[str, ...]] = ()    # the world kernel's functions it calls besides rollout and evaluate
     final_team: str = "best"      # the run's team: the best kept so far (elitist), or "last": the last iterate
 
     def __init__(self, world):

@@ -83,6 +83,7 @@ class SepCMA(Algorithm):
 
     fresh_ic = True
     state_type = SepCMAState
+    kernel_calls = ("evaluate_many",)                     # each generation's population in one call
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         return float(self.lam + fresh_ic)

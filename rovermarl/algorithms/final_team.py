@@ -21,6 +21,7 @@ class SharedActor(Algorithm):
     genome (P,) is ``state.best`` under ``best``."""
 
     fresh_ic = True    # evaluation.fresh_ic: trains and scores on fresh starts (else on the run's own, in turn)
+    kernel_calls = ("observe", "env_step")                # its environments' steps (rovermarl.vector.VectorEnv)
 
     def _genomes(self, params) -> np.ndarray:
         raise NotImplementedError

@@ -12,6 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import jit
 from rovermarl.algorithms import compiled
+from rovermarl.algorithms.base import AlgorithmError
 from rovermarl.algorithms.cc11es import CC11ES
 from rovermarl.jit import said
 from rovermarl.parallel import backend
@@ -22,16 +23,20 @@ from rovermarl.runner.job import run_job
 
 def cold(cfg: DictConfig) -> dict[str, list[str]]:
     """What of the job's compiled code is not in numba's cache yet for its world and precision (a first run compiles
-    it): the world's rollout and evaluation, and the compiled CC-(1+1)-ES loop where the job runs it (a population
-    algorithm's batched evaluation instead), as {what the compile notice calls their module
+    it): the world's rollout and evaluation, the compiled CC-(1+1)-ES loop where the job runs it, and the kernel
+    functions that the algorithm names (``Algorithm.kernel_calls``: a population's batched evaluation, an env's
+    step), as {what the compile notice calls their module
     (``jit.compiled_name``): [function, ...]}; empty when all is cached."""
     built = parts(to_plain(cfg))                 # the job's world and algorithm, as validate built them
     world, algorithm = built.world, built.algorithm
     kernel = world.compiled
     code = [kernel.rollout, kernel.evaluate]
-    if not isinstance(algorithm, CC11ES):                               # a population's teams: in one call
-        code.append(getattr(kernel, "evaluate_many", None))
-    elif algorithm.loop != "python" and compiled.refusal(
+    for name in algorithm.kernel_calls:                                 # its own calls: a population's, an env's
+        if not hasattr(kernel, name):
+            raise AlgorithmError(f"{type(algorithm).__name__}.kernel_calls names {name!r}, not a function of the "
+                                 f"world kernel {jit.compiled_name(kernel.__name__)}")
+        code.append(getattr(kernel, name))
+    if isinstance(algorithm, CC11ES) and algorithm.loop != "python" and compiled.refusal(
             algorithm, built.evaluation["fresh_ic"], backend(cfg.parallel).shards == 1) is None:
         code.append(compiled.loop_of(kernel)._generations)
     want = f"array({world.dtype}"
