@@ -1,0 +1,86 @@
+"""Instructions per ``World.evaluate`` call, this package against another source tree, counted by valgrind's
+callgrind: a count that another process on the machine does not change, where timings on this shared 2-core machine
+spread by 2-10% between probes (docs/PERFORMANCE.md). Each tree runs in its own process under callgrind: it builds
+the duo world, scores a zero-scoring team 20 times, then callgrind's counters are zeroed (``callgrind_control -z``),
+``--calls`` calls run, and the counters are dumped (``callgrind_control -d``). Prints one JSON line: each tree's
+instructions per call (the Python wrapper and the compiled rollout) and this package / the other tree.
+
+    git worktree add /tmp/old 2f7d6b8 && python benchmarks/instructions.py /tmp/old --dtype float64
+
+Under callgrind a process runs about 50x slower: its imports take about 10 minutes on this machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+CHILD = """
+import os, sys, time
+sys.path.insert(0, sys.argv[1])
+import numpy as np
+from rovermarl import make_world
+n, dtype, sync = int(sys.argv[2]), sys.argv[3], sys.argv[4]
+world = make_world("duo", dtype=dtype)
+p = world.prepare(world.run_ic(0))
+teams = np.random.default_rng(0).uniform(-2, 2, (256, world.n_rovers, world.n_params))
+zero = teams[np.flatnonzero(world.evaluate_many(teams, p, workers=1) == 0)[0]]
+for _ in range(20):
+    world.evaluate(zero, p)
+def handshake(name):
+    open(os.path.join(sync, name), "w").close()
+    while not os.path.exists(os.path.join(sync, name + ".ok")):
+        time.sleep(0.2)
+handshake("zero")
+for _ in range(n):
+    world.evaluate(zero, p)
+handshake("dump")
+"""
+
+
+def count(tree: Path, calls: int, dtype: str) -> float:
+    """Instructions per call of ``World.evaluate`` in ``tree`` (holding rovermarl/), under callgrind."""
+    with tempfile.TemporaryDirectory(prefix="rovermarl-ir-") as sync:
+        out = Path(sync) / "cg.out"
+        proc = subprocess.Popen(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
+                                 "-c", CHILD, str(tree), str(calls), dtype, sync],
+                                env={**os.environ, "PYTHONHASHSEED": "0"}, stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL)
+        for step, flag in (("zero", "-z"), ("dump", "-d")):
+            while not (Path(sync) / step).exists():
+                if proc.poll() is not None:
+                    sys.exit(f"benchmarks/instructions.py: the child in {tree} ended (exit {proc.returncode})")
+                time.sleep(1)
+            subprocess.run(["callgrind_control", flag, str(proc.pid)], check=True, capture_output=True)
+            (Path(sync) / f"{step}.ok").touch()
+        proc.wait()
+        dumps = [p for p in Path(sync).glob("cg.out*") if p != out]   # the dump made at "dump": cg.out.1
+        summary = re.search(r"^summary: (\d+)", dumps[0].read_text(), flags=re.M)
+        return int(summary[1]) / calls
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("other", type=Path, help="the other tree's root (holding rovermarl/ and conf/)")
+    p.add_argument("--calls", type=int, default=400)
+    p.add_argument("--dtype", choices=("float64", "float32"), default="float64")
+    a = p.parse_args()
+    if not (shutil.which("valgrind") and shutil.which("callgrind_control")):
+        sys.exit("benchmarks/instructions.py: needs valgrind (callgrind, callgrind_control) on PATH")
+    mine, other = count(ROOT, a.calls, a.dtype), count(a.other.resolve(), a.calls, a.dtype)
+    print(json.dumps({"benchmark": "instructions", "dtype": a.dtype, "calls": a.calls, "package": str(ROOT),
+                      "other": str(a.other.resolve()), "package_per_call": round(mine),
+                      "other_per_call": round(other), "package_over_other": round(mine / other, 4)}))
+
+
+if __name__ == "__main__":
+    main()
