@@ -45,3 +45,13 @@ def test_a_family_that_never_halves_is_said_to_hold(tmp_path):
     text = " ".join(report.merl(d))
     assert "fell below half its c = 1 level for PPO (SB3) (c = 3)" in text
     assert "stayed above half for CC-ES k=1 (to c = 6)" in text
+
+
+def test_a_family_with_only_its_c1_cell_makes_no_trend():
+    """merl(): a family run only at c = 1 is not said to hold (nothing was run past it)."""
+    report = study_module("coupling")
+    base = report.stats.median_exact([1.0, 1.0, 1.0])[0]
+    d = {"ppo": {"base": base, "half": None, "surely": None, "top": 1},
+         "cces_k1": {"base": base, "half": 2, "surely": 2, "top": 6}}
+    text = " ".join(report.merl(d))
+    assert text == "Not yet comparable: the sweep has no policy-gradient family run past c = 1 so far."

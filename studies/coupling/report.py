@@ -102,11 +102,11 @@ def _at(found: dict, learner: str, c: int | None, top: int) -> str:
 
 def merl(d: dict) -> list[str]:
     """The comparison with MERL's reported trend, only as strong as the families run allow."""
-    gradient = [n for n in ("ppo", "mappo", "ippo") if n in d]
-    evolution = [n for n in ("cces_k1", "cces_adaptive", "ccea_dpp", "cma") if n in d]
+    gradient = [n for n in ("ppo", "mappo", "ippo") if n in d and d[n]["top"] > 1]     # a trend needs two levels
+    evolution = [n for n in ("cces_k1", "cces_adaptive", "ccea_dpp", "cma") if n in d and d[n]["top"] > 1]
     if not gradient or not evolution:
-        return ["Not yet comparable: the sweep has no c = 1 cell of " +
-                ("a policy-gradient family" if not gradient else "an evolutionary family") + " so far."]
+        return ["Not yet comparable: the sweep has no " +
+                ("policy-gradient family" if not gradient else "evolutionary family") + " run past c = 1 so far."]
 
     def fell(names):
         return [f"{LEARNERS[n]} (c = {d[n]['half']})" for n in names if d[n]["half"]]
