@@ -51,7 +51,6 @@ def test_the_python_api_says_once_that_it_compiles(tmp_path):
     assert said == [1, 0]                                      # once when cold, never from the cache
 
 
-
 def test_once_warmed_an_rl_job_is_cold_no_more(tmp_path):
     """A launch compiles ahead only what the job calls (Algorithm.kernel_calls): once it has, the next launch finds
     everything cached (an RL learner was warmed at every launch for a batch call it never makes: 3-25 min each)."""

@@ -7,7 +7,7 @@ import sys
 import numpy as np
 import pytest
 
-from rovermarl.algorithms.base import Algorithm, AlgorithmError, Series
+from rovermarl.algorithms.base import Algorithm, Series
 from rovermarl.algorithms.operators.selectors import KSelector
 from rovermarl.env import make_world
 from rovermarl.errors import ConfigError
@@ -139,12 +139,14 @@ def test_a_state_of_other_fields_is_refused_naming_them():
         CC11ESState.from_dict({**{k: v for k, v in good.items() if k != "selector"}, "extra": 1})
 
 
-def test_a_kernel_call_the_world_lacks_is_one_line(monkeypatch):
-    from rovermarl.algorithms.cma import SepCMA
+@pytest.mark.parametrize("name", ["evaluate_lots", "__name__"])
+def test_a_kernel_call_the_world_lacks_is_refused_before_work_in_one_line_naming_the_file(monkeypatch, name):
+    from rovermarl.algorithms import cma
     from rovermarl.config import compose_config
-    from rovermarl.runner.compile import cold
+    from rovermarl.runner.validate import validate
 
-    monkeypatch.setattr(SepCMA, "kernel_calls", ("evaluate_lots",))
-    with pytest.raises(AlgorithmError, match="^SepCMA.kernel_calls names 'evaluate_lots', not a function of the "
-                                             "world kernel"):
-        cold(compose_config("setup=solo", "algorithm=cma"))
+    monkeypatch.setattr(cma.SepCMA, "kernel_calls", (name,))
+    with pytest.raises(ConfigError) as e:
+        validate(compose_config("setup=solo", "algorithm=cma"))
+    assert str(e.value) == (f"algorithm.kernel_calls={name}: SepCMA ({cma.__file__}) names no function of the world "
+                            "kernel rovermarl.env.kernel.fused")

@@ -266,6 +266,17 @@ class Algorithm:
                                          "under a name that is taken (" + ", ".join(sorted(RESERVED)) +
                                          ", behaviour_*, occupancy_*, or another series)")
 
+    def kernel_functions(self, kernel) -> list:
+        """The functions of the world kernel ``kernel`` (``World.compiled``) that :attr:`kernel_calls` names, or
+        :class:`~rovermarl.errors.ConfigError` (one line naming this class's file) for a name the kernel lacks."""
+        for name in self.kernel_calls:
+            if not callable(getattr(kernel, name, None)):
+                import sys
+                home = getattr(sys.modules.get(type(self).__module__), "__file__", type(self).__module__)
+                raise errors.ConfigError("algorithm.kernel_calls", name, f"{type(self).__name__} ({home}) names no "
+                                         f"function of the world kernel {kernel.__name__}")
+        return [getattr(kernel, name) for name in self.kernel_calls]
+
     def check_run(self, fresh_ic: bool, local: bool) -> None:
         """Refuse (:class:`~rovermarl.errors.ConfigError`, one line) a run this algorithm cannot honour as
         configured: under ``evaluation.fresh_ic`` (``fresh_ic``), or with teams scored in other processes (``local``

@@ -12,7 +12,6 @@ from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import jit
 from rovermarl.algorithms import compiled
-from rovermarl.algorithms.base import AlgorithmError
 from rovermarl.algorithms.cc11es import CC11ES
 from rovermarl.jit import said
 from rovermarl.parallel import backend
@@ -31,11 +30,7 @@ def cold(cfg: DictConfig) -> dict[str, list[str]]:
     world, algorithm = built.world, built.algorithm
     kernel = world.compiled
     code = [kernel.rollout, kernel.evaluate]
-    for name in algorithm.kernel_calls:                                 # its own calls: a population's, an env's
-        if not hasattr(kernel, name):
-            raise AlgorithmError(f"{type(algorithm).__name__}.kernel_calls names {name!r}, not a function of the "
-                                 f"world kernel {jit.compiled_name(kernel.__name__)}")
-        code.append(getattr(kernel, name))
+    code += algorithm.kernel_functions(kernel)                          # its own calls: a population's, an env's
     if isinstance(algorithm, CC11ES) and algorithm.loop != "python" and compiled.refusal(
             algorithm, built.evaluation["fresh_ic"], backend(cfg.parallel).shards == 1) is None:
         code.append(compiled.loop_of(kernel)._generations)

@@ -126,6 +126,7 @@ def validate(cfg: DictConfig) -> None:
         plain = to_plain(cfg)
         built = parts(plain)
     built.algorithm.check_series()
+    built.algorithm.kernel_functions(built.world.compiled)
     try:
         built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.shards == 1)
     except errors.ConfigError as e:
