@@ -3,7 +3,11 @@ callgrind: a count that another process on the machine does not change, where ti
 spread by 2-10% between probes (docs/PERFORMANCE.md). Each tree runs in its own process under callgrind: it builds
 the duo world, scores a zero-scoring team 20 times, then callgrind's counters are zeroed (``callgrind_control -z``),
 ``--calls`` calls run, and the counters are dumped (``callgrind_control -d``). Prints one JSON line: each tree's
-instructions per call (the Python wrapper and the compiled rollout) and this package / the other tree.
+instructions per call (the Python wrapper and the compiled rollout) and this package / the other tree; with
+``--bus``, also the atomic (``lock``-prefixed) instructions per call (callgrind's ``Ge`` event: numba's reference
+counts are atomic adds, which cost many cycles each and one instruction); with ``--cache``, the first-level and
+last-level cache misses per call (callgrind's cache simulation). Instrumentation starts at the zeroing (imports and
+warm-up run uninstrumented).
 
     git worktree add /tmp/old 2f7d6b8 && python benchmarks/instructions.py /tmp/old --dtype float64
 
@@ -47,25 +51,32 @@ handshake("dump")
 """
 
 
-def count(tree: Path, calls: int, dtype: str) -> float:
-    """Instructions per call of ``World.evaluate`` in ``tree`` (holding rovermarl/), under callgrind."""
+def count(tree: Path, calls: int, dtype: str, bus: bool = False, cache: bool = False) -> dict[str, float]:
+    """Callgrind's events per call of ``World.evaluate`` in ``tree`` (holding rovermarl/): ``Ir`` (instructions),
+    with ``bus`` ``Ge`` (atomic instructions), with ``cache`` ``D1mr``, ``D1mw``, ``DLmr``, ``DLmw``, ``I1mr``, ...
+    (first- and last-level misses)."""
     with tempfile.TemporaryDirectory(prefix="rovermarl-ir-") as sync:
         out = Path(sync) / "cg.out"
-        proc = subprocess.Popen(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", sys.executable,
+        extra = ["--collect-bus=yes"] * bus + ["--cache-sim=yes"] * cache
+        proc = subprocess.Popen(["valgrind", "--tool=callgrind", "--instr-atstart=no", *extra,
+                                 f"--callgrind-out-file={out}", sys.executable,
                                  "-c", CHILD, str(tree), str(calls), dtype, sync],
                                 env={**os.environ, "PYTHONHASHSEED": "0"}, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
-        for step, flag in (("zero", "-z"), ("dump", "-d")):
+        for step, commands in (("zero", (("-i", "on"), ("-z",))), ("dump", (("-d",),))):
             while not (Path(sync) / step).exists():
                 if proc.poll() is not None:
                     sys.exit(f"benchmarks/instructions.py: the child in {tree} ended (exit {proc.returncode})")
                 time.sleep(1)
-            subprocess.run(["callgrind_control", flag, str(proc.pid)], check=True, capture_output=True)
+            for flags in commands:              # instrumentation on, counters zeroed; then the dump
+                subprocess.run(["callgrind_control", *flags, str(proc.pid)], check=True, capture_output=True)
             (Path(sync) / f"{step}.ok").touch()
         proc.wait()
         dumps = [p for p in Path(sync).glob("cg.out*") if p != out]   # the dump made at "dump": cg.out.1
-        summary = re.search(r"^summary: (\d+)", dumps[0].read_text(), flags=re.M)
-        return int(summary[1]) / calls
+        text = dumps[0].read_text()
+        events = re.search(r"^events: (.+)$", text, flags=re.M)[1].split()
+        totals = re.search(r"^summary: (.+)$", text, flags=re.M)[1].split()
+        return {e: int(v) / calls for e, v in zip(events, totals, strict=False)}
 
 
 def main() -> None:
@@ -73,13 +84,17 @@ def main() -> None:
     p.add_argument("other", type=Path, help="the other tree's root (holding rovermarl/ and conf/)")
     p.add_argument("--calls", type=int, default=400)
     p.add_argument("--dtype", choices=("float64", "float32"), default="float64")
+    p.add_argument("--bus", action="store_true", help="count atomic instructions too (callgrind --collect-bus)")
+    p.add_argument("--cache", action="store_true", help="count cache misses too (callgrind --cache-sim)")
     a = p.parse_args()
     if not (shutil.which("valgrind") and shutil.which("callgrind_control")):
         sys.exit("benchmarks/instructions.py: needs valgrind (callgrind, callgrind_control) on PATH")
-    mine, other = count(ROOT, a.calls, a.dtype), count(a.other.resolve(), a.calls, a.dtype)
+    mine, other = (count(t, a.calls, a.dtype, a.bus, a.cache) for t in (ROOT, a.other.resolve()))
     print(json.dumps({"benchmark": "instructions", "dtype": a.dtype, "calls": a.calls, "package": str(ROOT),
-                      "other": str(a.other.resolve()), "package_per_call": round(mine),
-                      "other_per_call": round(other), "package_over_other": round(mine / other, 4)}))
+                      "other": str(a.other.resolve()), "package_per_call": round(mine["Ir"]),
+                      "other_per_call": round(other["Ir"]), "package_over_other": round(mine["Ir"] / other["Ir"], 4),
+                      "package_events": {e: round(v, 1) for e, v in mine.items()},
+                      "other_events": {e: round(v, 1) for e, v in other.items()}}))
 
 
 if __name__ == "__main__":
