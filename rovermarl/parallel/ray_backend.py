@@ -255,21 +255,42 @@ def _run_pool(par: Ray, job: dict, records, on_chunk, advance) -> None:
         submit(queue.pop(0), free.pop())
     last = probed = time.monotonic()
     raylets = _local_raylets()
-    while inflight:
-        ready, _ = _watched(lambda: ray.wait(list(inflight), num_returns=1, timeout=0.5))
-        if time.monotonic() - probed > 0.5:                        # Ray would wait, dump its logs, then abort
-            _alive(raylets)
-            probed = time.monotonic()
-        if not ready:
-            if time.monotonic() - last > stall:
-                raise BackendError(f"no chunk finished in {stall:g} s (parallel.stall_timeout): Ray is stuck or "
-                                   "its processes died")
-            continue
-        last = time.monotonic()
-        [ref] = ready
-        rec, worker = inflight.pop(ref)
-        on_chunk(rec, rec.add(_watched(lambda ref=ref: ray.get(ref))))
-        if not rec.done:
-            submit(rec, worker)
-        elif queue:
-            submit(queue.pop(0), worker)
+    with _continued() as resumed:
+        while inflight:
+            ready, _ = _watched(lambda: ray.wait(list(inflight), num_returns=1, timeout=0.5))
+            if time.monotonic() - probed > 0.5:                        # Ray would wait, dump its logs, then abort
+                _alive(raylets)
+                probed = time.monotonic()
+            last = max(last, resumed[0])                   # the time this launch was stopped is no stall
+            if not ready:
+                if time.monotonic() - last > stall:
+                    raise BackendError(f"no chunk finished in {stall:g} s (parallel.stall_timeout): Ray is stuck "
+                                       "or its processes died")
+                continue
+            last = time.monotonic()
+            [ref] = ready
+            rec, worker = inflight.pop(ref)
+            on_chunk(rec, rec.add(_watched(lambda ref=ref: ray.get(ref))))
+            if not rec.done:
+                submit(rec, worker)
+            elif queue:
+                submit(queue.pop(0), worker)
+
+
+@contextlib.contextmanager
+def _continued():
+    """A list whose one item is when this process last continued after being stopped (SIGCONT: after Ctrl-Z and
+    ``fg``, or a scheduler's suspend and resume, as SLURM's ``scontrol suspend``); the stall timer starts again there.
+    Only the main thread may set a handler: elsewhere the list stays ``[-inf]``."""
+    resumed = [-float("inf")]
+    if threading.current_thread() is not threading.main_thread():
+        yield resumed
+        return
+
+    def note(*_):
+        resumed[0] = time.monotonic()
+    previous = signal.signal(signal.SIGCONT, note)
+    try:
+        yield resumed
+    finally:
+        signal.signal(signal.SIGCONT, previous)
