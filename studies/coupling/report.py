@@ -92,7 +92,8 @@ def report(results: Path) -> str:
         half, surely = (_at(found, n, c, v["top"]) for c in (v["half"], v["surely"]))
         lines.append(f"- {LEARNERS[n]}: c = 1 median {base.fmt(3)}; half: {half}; surely: {surely}.")
     lines += ["", "### Against MERL's trend", ""] + merl(d) + [
-        "", "Figure: [coupling](../results/" + Path(results).name + "/figures/coupling.png)."]
+        "", "Figure: [coupling](../results/" + Path(results).name + "/figures/coupling.png): the held-out median per "
+        "family against c, the interval as an error bar, the families side by side at each c."]
     return "\n".join(lines) + "\n"
 
 
@@ -125,17 +126,19 @@ def merl(d: dict) -> list[str]:
 
 
 def figure(results: Path, formats=("png",)) -> list[Path]:
-    """Held-out median against c per family, its interval as a band."""
+    """Held-out median against c per family, its interval as an error bar (the families side by side at each c)."""
     from rovermarl.analysis.draw import new_figure, save
 
     found = cells(results)
     fig = new_figure(5.5, 3.4)
     ax = fig.add_subplot(1, 1, 1)
-    for i, n in enumerate(x for x in LEARNERS if any((x, c) in found for c in LEVELS)):
+    shown = [x for x in LEARNERS if any((x, c) in found for c in LEVELS)]
+    for i, n in enumerate(shown):
         cs = [c for c in LEVELS if (n, c) in found]
         est = [stats.median_exact(found[(n, c)])[0] for c in cs]
-        ax.plot(cs, [e.value for e in est], "o-", color=f"C{i}", label=LEARNERS[n], lw=1.4, ms=3)
-        ax.fill_between(cs, [e.low for e in est], [e.high for e in est], color=f"C{i}", alpha=0.12, lw=0)
+        x = [c + 0.5 * (i - (len(shown) - 1) / 2) / len(shown) for c in cs]       # side by side within +-0.25
+        ax.errorbar(x, [e.value for e in est], yerr=[[e.value - e.low for e in est], [e.high - e.value for e in est]],
+                    fmt="o-", color=f"C{i}", label=LEARNERS[n], lw=1.2, ms=3, elinewidth=0.8, capsize=1.5)
     ax.set_xlabel("coupling c (rovers a POI needs at once; N = 2c)")
     ax.set_ylabel("held-out team score (median)")
     ax.set_xticks(LEVELS)
