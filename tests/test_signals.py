@@ -187,6 +187,7 @@ def test_a_signal_whose_exception_rays_start_swallows_is_raised_again(monkeypatc
 
     previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(signum))          # Ray's own SIGTERM handler
+    signal.signal(signal.SIGINT, signal.default_int_handler)   # a shell's background job starts with SIGINT ignored
     monkeypatch.setattr(ray, "is_initialized", lambda: False)
     monkeypatch.setattr(ray, "init", init)
     cfg = type("RayCfg", (), {"address": None, "num_cpus": 1})()
