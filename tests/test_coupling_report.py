@@ -44,7 +44,7 @@ def test_a_family_that_never_halves_is_said_to_hold(tmp_path):
          "cces_k1": {"base": base, "half": None, "surely": None, "top": 6}}
     text = " ".join(report.merl(d))
     assert "fell below half its c = 1 level for PPO (SB3) (c = 3)" in text
-    assert "stayed above half for CC-ES k=1 (to c = 6)" in text
+    assert "did not fall below half for CC-ES k=1 (to c = 6)" in text
 
 
 def test_a_family_with_only_its_c1_cell_makes_no_trend():

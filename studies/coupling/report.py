@@ -119,7 +119,7 @@ def merl(d: dict) -> list[str]:
             "grows while evolution keeps it. Here, at equal agent-steps, the held-out median fell below half its "
             "c = 1 level for ")
     text += ", ".join(fell(gradient) + fell(evolution)) or "no family"
-    text += "; it stayed above half for " + (", ".join(held(gradient) + held(evolution)) or "no family") + "."
+    text += "; it did not fall below half for " + (", ".join(held(gradient) + held(evolution)) or "no family") + "."
     return [text, "", "This compares trends, not numbers: MERL's world, learners (MADDPG, MATD3, MERL) and budgets "
             "differ from these, and a level's median from 5-8 runs says little about a single level's difference "
             "(the intervals above)."]
