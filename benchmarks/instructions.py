@@ -6,8 +6,9 @@ the duo world, scores a zero-scoring team 20 times, then callgrind's counters ar
 instructions per call (the Python wrapper and the compiled rollout) and this package / the other tree; with
 ``--bus``, also the atomic (``lock``-prefixed) instructions per call (callgrind's ``Ge`` event: numba's reference
 counts are atomic adds, which cost many cycles each and one instruction); with ``--cache``, the first-level and
-last-level cache misses per call (callgrind's cache simulation). Instrumentation starts at the zeroing (imports and
-warm-up run uninstrumented).
+last-level cache misses per call (callgrind's cache simulation); with ``--loop``, per generation of the compiled
+CC-(1+1)-ES loop instead (duo, EXP3). Instrumentation starts at the zeroing (imports and warm-up run
+uninstrumented).
 
     git worktree add /tmp/old 2f7d6b8 && python benchmarks/instructions.py /tmp/old --dtype float64
 
@@ -49,9 +50,27 @@ for _ in range(n):
     world.evaluate(zero, p)
 handshake("dump")
 """
+LOOP_CHILD = """
+import os, sys, time
+sys.path.insert(0, sys.argv[1])
+from rovermarl.config import compose_config
+from rovermarl.runner.chunk import Run, to_plain
+n, dtype, sync = int(sys.argv[2]), sys.argv[3], sys.argv[4]
+run = Run(to_plain(compose_config("setup=duo", "k=adaptive", "generations=100000000", "algorithm.loop=compiled",
+                                  f"env.dtype={dtype}")), 0)
+run.advance(200)
+def handshake(name):
+    open(os.path.join(sync, name), "w").close()
+    while not os.path.exists(os.path.join(sync, name + ".ok")):
+        time.sleep(0.2)
+handshake("zero")
+run.advance(n)
+handshake("dump")
+"""
 
 
-def count(tree: Path, calls: int, dtype: str, bus: bool = False, cache: bool = False) -> dict[str, float]:
+def count(tree: Path, calls: int, dtype: str, bus: bool = False, cache: bool = False,
+          child: str = CHILD) -> dict[str, float]:
     """Callgrind's events per call of ``World.evaluate`` in ``tree`` (holding rovermarl/): ``Ir`` (instructions),
     with ``bus`` ``Ge`` (atomic instructions), with ``cache`` ``D1mr``, ``D1mw``, ``DLmr``, ``DLmw``, ``I1mr``, ...
     (first- and last-level misses)."""
@@ -60,7 +79,7 @@ def count(tree: Path, calls: int, dtype: str, bus: bool = False, cache: bool = F
         extra = ["--collect-bus=yes"] * bus + ["--cache-sim=yes"] * cache
         proc = subprocess.Popen(["valgrind", "--tool=callgrind", "--instr-atstart=no", *extra,
                                  f"--callgrind-out-file={out}", sys.executable,
-                                 "-c", CHILD, str(tree), str(calls), dtype, sync],
+                                 "-c", child, str(tree), str(calls), dtype, sync],
                                 env={**os.environ, "PYTHONHASHSEED": "0"}, stdout=subprocess.DEVNULL,
                                 stderr=subprocess.DEVNULL)
         for step, commands in (("zero", (("-i", "on"), ("-z",))), ("dump", (("-d",),))):
@@ -86,11 +105,15 @@ def main() -> None:
     p.add_argument("--dtype", choices=("float64", "float32"), default="float64")
     p.add_argument("--bus", action="store_true", help="count atomic instructions too (callgrind --collect-bus)")
     p.add_argument("--cache", action="store_true", help="count cache misses too (callgrind --cache-sim)")
+    p.add_argument("--loop", action="store_true", help="count per generation of the compiled CC-(1+1)-ES loop (duo, "
+                   "k=adaptive, after 200 generations) instead of per World.evaluate call")
     a = p.parse_args()
     if not (shutil.which("valgrind") and shutil.which("callgrind_control")):
         sys.exit("benchmarks/instructions.py: needs valgrind (callgrind, callgrind_control) on PATH")
-    mine, other = (count(t, a.calls, a.dtype, a.bus, a.cache) for t in (ROOT, a.other.resolve()))
-    print(json.dumps({"benchmark": "instructions", "dtype": a.dtype, "calls": a.calls, "package": str(ROOT),
+    child = LOOP_CHILD if a.loop else CHILD
+    mine, other = (count(t, a.calls, a.dtype, a.bus, a.cache, child) for t in (ROOT, a.other.resolve()))
+    print(json.dumps({"benchmark": "instructions", "per": "generation" if a.loop else "call", "dtype": a.dtype,
+                      "calls": a.calls, "package": str(ROOT),
                       "other": str(a.other.resolve()), "package_per_call": round(mine["Ir"]),
                       "other_per_call": round(other["Ir"]), "package_over_other": round(mine["Ir"] / other["Ir"], 4),
                       "package_events": {e: round(v, 1) for e, v in mine.items()},

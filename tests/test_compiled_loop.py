@@ -44,8 +44,8 @@ def _run(overrides, loop, monkeypatch, seed=1, chunks=(700, 500)):
     calls)."""
     cfg = to_plain(make_cfg(*overrides, "generations=1200", f"algorithm.loop={loop}"))
     calls = []
-    real = compiled._generations
-    monkeypatch.setattr(compiled, "_generations", lambda *a: calls.append(1) or real(*a))
+    real = compiled.run
+    monkeypatch.setattr(compiled, "run", lambda *a: calls.append(1) or real(*a))
     run = Run(cfg, seed)
     arrays = [run.advance(n) for n in chunks]
     resumed = Run(cfg, seed, state=run.state())                   # a chunk after a resume, too
@@ -91,8 +91,8 @@ def test_a_plugin_world_runs_the_compiled_loop_and_gets_the_python_loops_run(ove
     py = _run(overrides, "python", monkeypatch)
     calls = []
     copy = compiled.loop_of(world.compiled)
-    real = copy._generations
-    monkeypatch.setattr(copy, "_generations", lambda *a: calls.append(1) or real(*a))
+    real = copy.run
+    monkeypatch.setattr(copy, "run", lambda *a: calls.append(1) or real(*a))
     jit = _run(overrides, "auto", monkeypatch)
     assert len(calls) > 1 and jit[0][0]["accepted"].any()
     _assert_same(py[:4], jit[:4])
@@ -177,3 +177,11 @@ def test_numpys_sum_order_is_not_the_plain_one():
     """What the test above tells apart: a plain left-to-right sum differs from numpy's."""
     a = np.random.default_rng(0).standard_normal((50, 37)) * 10.0 ** np.random.default_rng(1).uniform(-8, 8, (50, 37))
     assert any(pairwise_sum(row) != np.cumsum(row)[-1] for row in a)
+
+
+def test_the_compiled_loop_is_cached_for_the_next_process():
+    """numba caches no function that holds Python objects' addresses (it warns, and every process compiles again):
+    the loop's operations, passed to the one loop as functions, must be resolved at compile time."""
+    Run(to_plain(make_cfg("k=adaptive", "generations=20")), 0).advance(10)
+    assert compiled.run.overloads
+    assert not any(c.library.has_dynamic_globals for c in compiled.run.overloads.values())

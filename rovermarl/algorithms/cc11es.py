@@ -6,15 +6,18 @@ Its operators are config groups of their own: ``k`` (fixed or a k-selector such 
 
 Run state: :class:`CC11ESState`.
 
-``loop`` (``algorithm.loop``) chooses the generation loop: ``python`` runs :meth:`CC11ES._advance`'s steps 1-7 below,
-``compiled`` the same steps in numba (:mod:`rovermarl.algorithms.compiled`, bit-identical; refused in one line where
-it does not apply), ``auto`` (the default) the compiled one wherever it applies.
+The generation loop is :func:`rovermarl.algorithms.generation.generations` (steps 1-7), its one source, run over
+operations: ``loop`` (``algorithm.loop``) chooses ``python`` (:data:`PYTHON`, below: any operator, the loop run as
+Python), ``compiled`` (:data:`rovermarl.algorithms.compiled.COMPILED`: the loop compiled around the packaged
+operators' numba functions, bit-identical; refused in one line where it does not apply) or ``auto`` (the default:
+compiled wherever it applies).
 """
 
 from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -30,6 +33,7 @@ from rovermarl.algorithms.base import (
     generator,
     init_range,
 )
+from rovermarl.algorithms.generation import NO_PROBS, Context, Ops, generations
 
 
 @dataclass(kw_only=True)
@@ -101,34 +105,34 @@ class CC11ES(Algorithm):
         return self.composition.genomes(state.parents)
 
     def _advance(self, state, generation, n, evaluate, observer):
-        if self.loop != "python":
-            why = compiled.refusal(self, evaluate.fresh, evaluate.kernel_inputs() is not None)
-            if why is None:
-                return compiled.advance(self, state, generation, n, evaluate, observer)
-            if self.loop == "compiled":
-                raise AlgorithmError(f"algorithm.loop=compiled: {why}")
-        team, mutate, accept = self.composition, self.mutate, self.accept
         selector, rng_mut, rng_sel, parents, f_parent, h = self._start(state, n)
-        for t in range(n):
-            g = generation + t
-            if "probs" in h:
-                h["probs"][t] = selector.probs                                # before this generation's choice
-            k = self._check(selector.choose(rng_sel), selector)               # 1. choose k
-            chosen = team.pick(k, rng_mut)                                    # 2. k distinct rovers
-            children = team.mutate(parents, chosen, mutate, rng_mut)          # 3. mutate them
-            genomes = team.genomes(children)                                  # (N, P): the team the world sees
-            if evaluate.fresh:                                                #    fresh ICs: a new draw, the
-                evaluate.draw(g + 1)                                          #    parents scored on it too
-                f_parent = evaluate.score(team.genomes(parents))
-            f_child, final_xy = evaluate.measure(genomes)                     # 4. evaluate the team
-            h["switched"][t] = observer.evaluated(team.mutated(chosen), final_xy)  # did unmutated rovers switch POI?
-            accepted = accept(f_child, f_parent)                              # 5. all k children or none
-            selector.update(k, f_child, f_parent)                             # 6. reward the selector
-            if accepted:                                                      # 7. the observer logs the change
-                observer.accepted(g + 1, genomes, f_child, f_child != f_parent, final_xy)
-                parents, f_parent = children, f_child
-            h["k"][t], h["accepted"][t], h["child_score"][t], h["score"][t] = k, accepted, f_child, f_parent
+        out = (h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", NO_PROBS))
+        compiled_loop = self._compiled(evaluate)
+        if compiled_loop:
+            run = compiled.loop_of(evaluate.kernel_inputs().world.compiled).run
+            args = compiled.arguments(self, selector, rng_mut, rng_sel, parents, evaluate, observer)
+        else:
+            run, cx = _python_run, _python_context(self, selector, rng_mut, rng_sel, evaluate, observer, generation)
+            args = (cx,)
+        t = 0
+        while t < n:                              # a call stops after a generation that keeps its children
+            t, f_parent, f_before = run(t, n, parents, f_parent, *out, *args)
+            if h["accepted"][t - 1]:                                          # 7. the observer logs the change
+                final_xy = evaluate.kernel_inputs().final_xy if compiled_loop else cx.evaluation.final_xy
+                observer.accepted(generation + t, self.composition.genomes(parents.copy()), f_parent,
+                                  f_parent != f_before, None if final_xy is None else final_xy.copy())
+        if compiled_loop:
+            compiled.finish(selector, evaluate, n)
         return self._state(parents, f_parent, rng_mut, rng_sel, selector), h
+
+    def _compiled(self, evaluate) -> bool:
+        """Whether this chunk runs compiled (``algorithm.loop``; ``compiled`` where it does not apply: refused)."""
+        if self.loop == "python":
+            return False
+        why = compiled.refusal(self, evaluate.fresh, evaluate.kernel_inputs() is not None)
+        if why is not None and self.loop == "compiled":
+            raise AlgorithmError(f"algorithm.loop=compiled: {why}")
+        return why is None
 
     def _start(self, state, n):
         """The loop's working objects from run ``state``: the selector (a copy, in its state), the generators
@@ -146,10 +150,62 @@ class CC11ES(Algorithm):
         return CC11ESState(parents=parents, score=score, rng_mut=rng_mut.bit_generator.state,
                            rng_sel=rng_sel.bit_generator.state, selector=selector.state_dict())
 
-    def _check(self, k, selector) -> int:
+    def allowed_k(self, k, selector) -> int:
         """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""
         if k not in self.allowed or isinstance(k, bool):
             raise AlgorithmError(f"k-selector {type(selector).__name__} chose k={k!r}; allowed: "
                                  f"{', '.join(map(str, sorted(self.allowed)))} (its arms within 1..N="
                                  f"{self.world.n_rovers})")
         return k
+
+
+def _python_context(algo, selector, rng_mut, rng_sel, evaluate, observer, generation) -> Context:
+    """The Python operations' context for a chunk of CC11ES ``algo``: its operator objects, any plug-in's, the
+    chunk's copy of the selector, the generators, the run's evaluation and observer, the chunk's first generation;
+    ``evaluation.final_xy``: the last team's final positions (E, N, 2) as the evaluation measured them."""
+    team = algo.composition
+    evaluation = SimpleNamespace(evaluate=evaluate, composition=team, generation=generation, final_xy=None)
+    return Context(k=SimpleNamespace(selector=selector, rng=rng_sel, allowed=algo.allowed_k),
+                   team=SimpleNamespace(composition=team, mutate=algo.mutate, rng=rng_mut),
+                   evaluation=evaluation,
+                   observer=SimpleNamespace(observer=observer, composition=team, evaluation=evaluation),
+                   selection=algo.accept)
+
+
+def _choose(k, t, out_probs):
+    if out_probs.shape[0]:
+        out_probs[t] = k.selector.probs                                       # before this generation's choice
+    chosen = k.allowed(k.selector.choose(k.rng), k.selector)
+    return chosen, chosen                                                     # a Python selector's arm is its k
+
+
+def _rescore(evaluation, t, parents, f_parent):
+    if not evaluation.evaluate.fresh:
+        return f_parent
+    evaluation.evaluate.draw(evaluation.generation + t + 1)
+    return evaluation.evaluate.score(evaluation.composition.genomes(parents))
+
+
+def _measure(evaluation, children):
+    f, evaluation.final_xy = evaluation.evaluate.measure(evaluation.composition.genomes(children))
+    return f
+
+
+PYTHON = Ops(
+    choose=_choose,
+    pick=lambda team, k: team.composition.pick(k, team.rng),
+    mutate=lambda team, parents, chosen: team.composition.mutate(parents, chosen, team.mutate, team.rng),
+    rescore=_rescore,
+    measure=_measure,
+    switched=lambda obs, chosen: obs.observer.evaluated(obs.composition.mutated(chosen), obs.evaluation.final_xy),
+    accept=lambda accept, f_child, f_parent: accept(f_child, f_parent),
+    reward=lambda k, a, chosen, f_child, f_parent: k.selector.update(chosen, f_child, f_parent),
+    keep=np.copyto,
+)
+
+
+def _python_run(t, n, parents, f_parent, out_score, out_k, out_accepted, out_switched, out_child, out_probs, cx):
+    """:func:`~rovermarl.algorithms.generation.generations` over :data:`PYTHON` and ``cx``
+    (:func:`_python_context`), run as Python."""
+    return generations.py_func(t, n, parents, f_parent, PYTHON, cx, out_score, out_k, out_accepted, out_switched,
+                               out_child, out_probs)

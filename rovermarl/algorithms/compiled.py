@@ -1,23 +1,23 @@
-"""CC-(1+1)-ES's generation loop compiled (numba) for its common operators, bit-identical to the Python loop of
-:mod:`rovermarl.algorithms.cc11es`, which stays for every other plug-in.
+"""CC-(1+1)-ES's generation loop (:func:`~rovermarl.algorithms.generation.generations`, its one source) compiled
+over the numba functions of its common operators (:data:`COMPILED`), bit-identical to the same loop run in Python
+over any operators (:data:`~rovermarl.algorithms.cc11es.PYTHON`).
 
 The common case: k fixed or EXP3 (``k=1..N``, ``k=adaptive``), the mixed mutation, soft or strict selection, a
 heterogeneous or homogeneous team (exactly the classes of :data:`OPERATORS`), in any world (a plug-in's: a copy of
-this module's loop around its own rollout, :func:`loop_of`), scored in this process on the run's initial conditions
-(not fresh ones, not IC shards). :func:`refusal` says why a run is not in it (None:
-it is); ``algorithm.loop`` chooses (``auto``: this loop wherever it applies).
+this module around its own rollout, :func:`loop_of`), scored in this process on the run's initial conditions
+(not fresh ones, not IC shards). :func:`refusal` says why a run is not in it (None: it is); ``algorithm.loop``
+chooses (``auto``: compiled wherever it applies).
 
-Both loops run the same rules: the compiled one calls the operators' own numba functions (``draw_arm``,
-``exp3_update``, ``bandit_reward``, ``pick_distinct``, ``mixed``, ``keeps``), the world's kernel and its
-:func:`~rovermarl.env.kernel.score`, and numba draws the same numbers from a numpy ``Generator`` as numpy does.
+The operations call the operators' own numba functions (``draw_arm``, ``exp3_update``, ``bandit_reward``,
+``pick_distinct``, ``mixed``, ``keeps``), which their Python classes call too, the world's kernel and its
+:func:`~rovermarl.env.kernel.score`; numba draws the same numbers from a numpy ``Generator`` as numpy does.
 Accepted generations are rare (1 in 196 with k=1 and 1 in 147 with EXP3 in 20,000-generation runs on solo), so
-the compiled call stops after each one and Python tells the observer (trajectories, occupancy), then calls again.
+a compiled call stops after each one and Python tells the observer (trajectories, occupancy), then calls again.
 
-Why a second loop: a generation's team evaluation is about 45 us of compiled work, and the Python loop adds its
-operators' calls to each. ``python benchmarks/loop.py`` (500-generation chunks, alternated, medians of 7) gave the
-compiled loop 1.39x (solo, k=1) and 1.61x (duo, adaptive) at load 0.8, and 1.52x and 1.75x at load 7.8, on this
-2-core machine (2026-12-07). Its rules are the operators' own numba functions, which their Python classes call too,
-and ``tests/test_compiled_loop.py`` holds the two loops to the same bits for every packaged operator.
+Why compile it: a generation's team evaluation is about 45 us of compiled work, and the Python operations add their
+calls to each. ``python benchmarks/loop.py`` (500-generation chunks, alternated, medians of 7) gave the compiled
+loop 1.39x (solo, k=1) and 1.61x (duo, adaptive) at load 0.8, and 1.52x and 1.75x at load 7.8, on this 2-core
+machine (2026-12-07); ``tests/test_compiled_loop.py`` holds the two to the same bits for every packaged operator.
 """
 
 from __future__ import annotations
@@ -25,11 +25,13 @@ from __future__ import annotations
 import functools
 import hashlib
 import sys
+from collections import namedtuple
 from pathlib import Path
 
 import numpy as np
 
 from rovermarl import jit
+from rovermarl.algorithms.generation import Context, Ops, generations
 from rovermarl.algorithms.operators.mutation import MixedMutation, mixed
 from rovermarl.algorithms.operators.selection import Selection, keeps
 from rovermarl.algorithms.operators.selectors import EXP3, FixedK, bandit_reward, draw_arm, exp3_update
@@ -40,7 +42,7 @@ from rovermarl.env.kernel.fused import rollout  # rollout
 from rovermarl.jit import njit
 
 _NO_FINAL = np.empty((0, 1, 2))
-_NO_POI, _NO_PROBS = np.empty((0, 1), dtype=np.int16), np.empty((0, 1))
+_NO_POI = np.empty((0, 1), dtype=np.int16)
 
 
 # The operator classes the compiled loop runs, by the CC11ES attribute that holds each (subclasses may change any
@@ -67,40 +69,44 @@ def refusal(algo, fresh: bool, local: bool) -> str | None:
     return None
 
 
-def advance(algo, state, generation: int, n: int, evaluate, observer) -> tuple:
-    """:meth:`CC11ES._advance <rovermarl.algorithms.cc11es.CC11ES._advance>` in compiled chunks: the same state
-    and arrays, bit for bit."""
-    team, mut = algo.composition, algo.mutate
-    selector, rng_mut, rng_sel, parents, f_parent, h = algo._start(state, n)
+# The compiled operations' context (generation.Context), a part per operator; run builds it from its arguments.
+KSelector = namedtuple("KSelector", "rng fixed_k arms gamma gain f_max log_w probs")
+TeamMutation = namedtuple("TeamMutation", "rng n_rovers homogeneous p_gaussian sigma m low high children")
+Evaluation = namedtuple("Evaluation", "n_rovers homogeneous xy0 h0 world returns final_xy team no_xy no_heading")
+Switches = namedtuple("Switches", "homogeneous final_xy mutated parent_poi poi_xy radius")
+
+
+def arguments(algo, selector, rng_mut, rng_sel, parents, evaluate, observer) -> tuple:
+    """:func:`run`'s arguments after the loop's own, for a chunk of CC11ES ``algo`` (numba types plain arguments
+    quickly: a call returns to Python after each accepted generation, and a tuple of them took 200 us to dispatch
+    where these take 13)."""
+    team, mut, n = algo.composition, algo.mutate, algo.composition.n_agents
     exp3 = isinstance(selector, EXP3)
-    arms = np.array(selector.arms, dtype=np.int64)
-    log_w, probs = (selector.log_w, selector.probs.copy()) if exp3 else (np.zeros(1), np.ones(1))
     world, ic, final_xy = evaluate.kernel_inputs()
-    args = world.kernel_args(ic)
-    final = _NO_FINAL if final_xy is None else final_xy
-    t = 0
-    while t < n:
-        probe = observer.switch_inputs()                         # (parent_poi, poi_xy, radius) or None
-        parent_poi, poi_xy, radius = probe if probe is not None else (_NO_POI, world.poi_xy, 0.0)
-        f_before = f_parent
-        t, f_parent = loop_of(world.compiled)._generations(
-            t, n, parents, f_parent, team.n_agents, isinstance(team, HomogeneousTeam),
-            rng_mut, rng_sel, 0 if exp3 else selector.value, arms, selector.gamma if exp3 else 0.0,
-            selector.reward_rule == "gain", selector.f_max, log_w, probs,
-            mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]), mut.low, mut.high, algo.accept.strict,
-            *args, final, parent_poi, poi_xy, radius,
-            h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", _NO_PROBS))
-        if t > 0 and h["accepted"][t - 1]:                   # the generation that stopped the call kept its team
-            observer.accepted(generation + t, team.genomes(parents.copy()), f_parent, f_parent != f_before,
-                              None if final_xy is None else final_xy.copy())          # its final positions
+    xy0, h0, kernel_world = world.kernel_args(ic)
+    probe = observer.switch_inputs()                         # (parent_poi, poi_xy, radius) or None
+    parent_poi, poi_xy, radius = probe if probe is not None else (_NO_POI, world.poi_xy, 0.0)
+    return (rng_sel, 0 if exp3 else selector.value, np.array(selector.arms, dtype=np.int64),
+            selector.gamma if exp3 else 0.0, selector.reward_rule == "gain", selector.f_max,
+            *((selector.log_w, selector.probs.copy()) if exp3 else (np.zeros(1), np.ones(1))),
+            rng_mut, n, isinstance(team, HomogeneousTeam), mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]),
+            mut.low, mut.high, np.empty_like(parents),
+            xy0, h0, kernel_world, np.empty(h0.shape[0]), _NO_FINAL if final_xy is None else final_xy,
+            np.empty((n, parents.shape[1]), dtype=xy0.dtype),           # in the kernel's precision (env.dtype)
+            np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)),
+            np.empty(n, dtype=np.bool_), parent_poi, poi_xy, radius, algo.accept.strict)
+
+
+def finish(selector, evaluate, n: int) -> None:
+    """After a compiled chunk of ``n`` generations: the evaluations it made counted, EXP3's weights (changed in
+    place) loaded again (its probabilities: the same function's)."""
     evaluate.calls += n
-    if exp3:
-        selector.load_state_dict({"log_w": log_w})                  # its probabilities: the same function's
-    return algo._state(parents, f_parent, rng_mut, rng_sel, selector), h
+    if isinstance(selector, EXP3):
+        selector.load_state_dict({"log_w": selector.log_w})
 
 
 def loop_of(kernel):
-    """The module whose ``_generations`` runs the world kernel ``kernel`` (``World.compiled``): this one for the
+    """The module whose :func:`run` runs the world kernel ``kernel`` (``World.compiled``): this one for the
     paper world's, else a copy of this module whose ``rollout`` is the plug-in's (compiled into the loop as the paper
     world's is; ``benchmarks/plugin_loop.py`` measures the two), made by ``compose.fill`` (the import it replaces is
     asserted: a plug-in never trains with the paper's rollout)."""
@@ -120,49 +126,89 @@ def _copy(world_module: str):
     return load_generated(name, text)
 
 
+@njit(inline="always", cache=True)
+def _choose(k, t, out_probs):
+    if k.fixed_k:
+        return 0, k.fixed_k
+    _put_row(out_probs, t, k.probs)
+    a = draw_arm(k.probs, k.rng.random())
+    return a, k.arms[a]
+
+
+@njit(inline="always", cache=True)
+def _pick(team, k):
+    return np.zeros(1, np.int64) if team.homogeneous else pick_distinct(team.rng, team.n_rovers, k)
+
+
+@njit(inline="always", cache=True)
+def _mutate(team, parents, chosen):
+    _put(team.children, parents)
+    for i in chosen:
+        _put_row(team.children, i, mixed(parents[i], team.rng, team.p_gaussian, team.sigma, team.m, team.low,
+                                         team.high))
+    return team.children
+
+
+@njit(inline="always", cache=True)
+def _rescore(evaluation, t, parents, f_parent):
+    return f_parent                                          # fixed initial conditions (refusal: no fresh ones)
+
+
+@njit(inline="always", cache=True)
+def _measure(ev, children):
+    for r in range(ev.n_rovers):                             # the team the world sees
+        _put_row(ev.team, r, children[0] if ev.homogeneous else children[r])
+    rollout(ev.team, ev.xy0, ev.h0, ev.world, ev.returns, ev.no_xy, ev.no_heading, ev.final_xy)
+    return score(ev.returns)
+
+
+@njit(inline="always", cache=True)
+def _switched(obs, chosen):
+    obs.mutated[:] = obs.homogeneous
+    for i in chosen:
+        obs.mutated[i] = True
+    return switched(obs.final_xy, obs.poi_xy, obs.radius, obs.parent_poi, obs.mutated)
+
+
+@njit(inline="always", cache=True)
+def _accept(strict, f_child, f_parent):
+    return keeps(f_child, f_parent, strict)
+
+
+@njit(inline="always", cache=True)
+def _reward(k, a, k_chosen, f_child, f_parent):
+    if k.fixed_k == 0:
+        exp3_update(k.log_w, k.probs, a, bandit_reward(f_child, f_parent, k.gain, k.f_max), k.gamma, k.probs)
+
+
+@njit(inline="always", cache=True)
+def _keep(parents, children):
+    _put(parents, children)
+
+
+COMPILED = Ops(_choose, _pick, _mutate, _rescore, _measure, _switched, _accept, _reward, _keep)
+
+
 @njit(cache=True)
-def _generations(t, n, parents, f_parent, n_rovers, homogeneous, rng_mut, rng_sel, fixed_k, arms,
-                 gamma, gain, f_max, log_w, probs, p_gaussian, sigma, m, low, high, strict, xy0, h0, world, final_xy,
-                 parent_poi, poi_xy, radius, out_score, out_k, out_accepted, out_switched, out_child, out_probs):
-    """Generations t..n-1 of a chunk, up to and including the first that keeps its children; returns the next t
-    and the parents' score. ``parents`` (M, P) and EXP3's ``log_w``, ``probs`` (K,) change in place; the
-    generation's k, acceptance, switched count (-1: not measured), child score and score go to ``out_*`` (n,),
-    EXP3's probabilities before its choice to ``out_probs`` (n, K). ``xy0``, ``h0``, ``world`` are
-    ``World.kernel_args(ic)``: the initial conditions and the world's :class:`~rovermarl.env.kernel.KernelWorld`."""
-    returns = np.empty(h0.shape[0])
-    team = np.empty((n_rovers, parents.shape[1]), dtype=xy0.dtype)      # in the kernel's precision (env.dtype)
-    children = np.empty_like(parents)
-    mutated = np.empty(n_rovers, dtype=np.bool_)
-    no_xy, no_heading = np.empty((0, 1, 1, 2)), np.empty((0, 1, 1))                 # no trajectories
-    while t < n:
-        a, k = 0, fixed_k                                                 # 1. choose k (arm a)
-        if fixed_k == 0:
-            _put_row(out_probs, t, probs)
-            a = draw_arm(probs, rng_sel.random())
-            k = arms[a]
-        chosen = np.zeros(1, np.int64) if homogeneous else pick_distinct(rng_mut, n_rovers, k)   # 2. k rovers
-        _put(children, parents)
-        for i in chosen:                                                  # 3. mutate them
-            _put_row(children, i, mixed(parents[i], rng_mut, p_gaussian, sigma, m, low, high))
-        for r in range(n_rovers):                                         #    the team the world sees
-            _put_row(team, r, children[0] if homogeneous else children[r])
-        rollout(team, xy0, h0, world, returns, no_xy, no_heading, final_xy)
-        f_child = score(returns)                                          # 4. evaluate the team
-        mutated[:] = homogeneous
-        for i in chosen:
-            mutated[i] = True
-        out_switched[t] = switched(final_xy, poi_xy, radius, parent_poi, mutated)
-        accepted = keeps(f_child, f_parent, strict)                       # 5. all k children or none
-        if fixed_k == 0:                                                  # 6. reward the selector
-            exp3_update(log_w, probs, a, bandit_reward(f_child, f_parent, gain, f_max), gamma, probs)
-        if accepted:
-            _put(parents, children)
-            f_parent = f_child
-        out_k[t], out_accepted[t], out_child[t], out_score[t] = k, accepted, f_child, f_parent
-        t += 1
-        if accepted:                                                      # 7. Python tells the observer
-            return t, f_parent
-    return t, f_parent
+def run(t, n, parents, f_parent, out_score, out_k, out_accepted, out_switched, out_child, out_probs,
+        rng_sel, fixed_k, arms, gamma, gain, f_max, log_w, probs,
+        rng_mut, n_rovers, homogeneous, p_gaussian, sigma, m, low, high, children,
+        xy0, h0, world, returns, final_xy, team, no_xy, no_heading,
+        mutated, parent_poi, poi_xy, radius, strict):
+    """:func:`~rovermarl.algorithms.generation.generations` over :data:`COMPILED`, its context built from
+    :func:`arguments`: ``k`` (:class:`KSelector`: the selector's generator, ``fixed_k`` (0: EXP3), EXP3's ``arms``
+    (K,), ``gamma``, ``gain``, ``f_max`` and its ``log_w``, ``probs`` (K,), changed in place), ``team``
+    (:class:`TeamMutation`: the mutation's generator and parameters, the work array ``children`` (M, P)),
+    ``evaluation`` (:class:`Evaluation`: the rollout's arguments ``World.kernel_args``, ``xy0``, ``h0``, ``world``,
+    its outputs ``returns`` (E,) and ``final_xy`` (E, N, 2; (0, 1, 2): none kept), the work array ``team`` (N, P), no
+    trajectories), ``observer`` (:class:`Switches`: the work array ``mutated`` (N,), what the switched count
+    compares: the observer's ``parent_poi`` (E, N), ``poi_xy``, ``radius``) and ``selection`` (``strict``)."""
+    cx = Context(KSelector(rng_sel, fixed_k, arms, gamma, gain, f_max, log_w, probs),
+                 TeamMutation(rng_mut, n_rovers, homogeneous, p_gaussian, sigma, m, low, high, children),
+                 Evaluation(n_rovers, homogeneous, xy0, h0, world, returns, final_xy, team, no_xy, no_heading),
+                 Switches(homogeneous, final_xy, mutated, parent_poi, poi_xy, radius), strict)
+    return generations(t, n, parents, f_parent, COMPILED, cx, out_score, out_k, out_accepted, out_switched,
+                       out_child, out_probs)
 
 
 @njit(cache=True)

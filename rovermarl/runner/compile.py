@@ -33,7 +33,7 @@ def cold(cfg: DictConfig) -> dict[str, list[str]]:
     code += algorithm.kernel_functions(kernel)                          # its own calls: a population's, an env's
     if isinstance(algorithm, CC11ES) and algorithm.loop != "python" and compiled.refusal(
             algorithm, built.evaluation["fresh_ic"], backend(cfg.parallel).shards == 1) is None:
-        code.append(compiled.loop_of(kernel)._generations)
+        code.append(compiled.loop_of(kernel).run)
     want = f"array({world.dtype}"
     missing: dict[str, list[str]] = {}
     for fn in filter(None, code):
