@@ -72,8 +72,9 @@ def report(results: Path) -> str:
     found = cells(results)
     names = [n for n in LEARNERS if any((n, c) in found for c in LEVELS)]
     lines = [HEAD, "", "Held-out median [exact order-statistic interval] (n runs) per family and coupling level c; "
-             "the maximum team return is 2 at every c. The interval is the range of the runs up to n = 8, its "
-             "coverage 1 - 2^(1-n) (94% at n = 5, 99% at n = 8). `not run`: no exported job yet.", "",
+             "the maximum team return is 2 at every c (two POIs, each observed by c rovers at once; 1 is one such "
+             "POI). The interval is the range of the runs up to n = 8, its coverage 1 - 2^(1-n) (94% at n = 5, "
+             "99% at n = 8). `not run`: no exported job yet.", "",
              "| learner | " + " | ".join(f"c={c}" for c in LEVELS) + " |", "|---" * (len(LEVELS) + 1) + "|"]
     for n in names:
         row = []
