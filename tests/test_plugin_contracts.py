@@ -9,6 +9,7 @@ import pytest
 
 from rovermarl.algorithms.base import Algorithm, Series
 from rovermarl.algorithms.operators.selectors import KSelector
+from rovermarl.algorithms.operators.team import HeterogeneousTeam
 from rovermarl.env import make_world
 from rovermarl.errors import ConfigError
 from rovermarl.record.checkpoint import _decode, _encode
@@ -150,3 +151,22 @@ def test_a_kernel_call_the_world_lacks_is_refused_before_work_in_one_line_naming
         validate(compose_config("setup=solo", "algorithm=cma"))
     assert str(e.value) == (f"algorithm.kernel_calls={name}: SepCMA ({cma.__file__}) names no function of the world "
                             "kernel rovermarl.env.kernel.fused")
+
+
+class ShortChildren(HeterogeneousTeam):
+    """A team plug-in whose mutate drops each child's last parameter."""
+
+    def mutate(self, parents, chosen, mutation, rng):
+        return super().mutate(parents, chosen, mutation, rng)[:, :-1]
+
+
+def test_a_team_whose_children_lose_the_parents_shape_is_refused_in_one_line_naming_its_file():
+    from rovermarl.algorithms.base import AlgorithmError
+    from rovermarl.config import compose_config
+    from rovermarl.runner.chunk import Run
+    cfg = compose_config("generations=20", "parallel=serial")
+    cfg.team = {"_target_": f"{__name__}.ShortChildren"}
+    with pytest.raises(AlgorithmError) as e:
+        Run(cfg, 0).advance(5)
+    assert f"team {__name__}.ShortChildren ({__file__}): mutate returned (4, 657)" in str(e.value)
+    assert "parents' shape (4, 658)" in str(e.value) and "\n" not in str(e.value)

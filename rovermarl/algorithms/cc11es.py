@@ -16,6 +16,7 @@ compiled wherever it applies).
 from __future__ import annotations
 
 import copy
+import inspect
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -179,6 +180,16 @@ def _choose(k, t, out_probs):
     return chosen, chosen                                                     # a Python selector's arm is its k
 
 
+def _mutate(team, parents, chosen):
+    children = team.composition.mutate(parents, chosen, team.mutate, team.rng)
+    if not isinstance(children, np.ndarray) or children.shape != parents.shape:
+        cls = type(team.composition)
+        raise AlgorithmError(f"team {cls.__module__}.{cls.__qualname__} ({inspect.getsourcefile(cls)}): mutate "
+                             f"returned {getattr(children, 'shape', type(children).__name__)}, not an array of the "
+                             f"parents' shape {parents.shape}")
+    return children
+
+
 def _rescore(evaluation, t, parents, f_parent):
     if not evaluation.evaluate.fresh:
         return f_parent
@@ -194,7 +205,7 @@ def _measure(evaluation, children):
 PYTHON = Ops(
     choose=_choose,
     pick=lambda team, k: team.composition.pick(k, team.rng),
-    mutate=lambda team, parents, chosen: team.composition.mutate(parents, chosen, team.mutate, team.rng),
+    mutate=_mutate,
     rescore=_rescore,
     measure=_measure,
     switched=lambda obs, chosen: obs.observer.evaluated(obs.composition.mutated(chosen), obs.evaluation.final_xy),
