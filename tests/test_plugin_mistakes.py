@@ -1,8 +1,8 @@
 """Issue 53: a world plug-in author's mistakes end in one line naming their file, never in wrong numbers; one world's
 compiled code is never spoiled by another; a compile is announced and left out of a job's throughput.
 
-The world is ``tests/data/battery`` (rovers on batteries: per-rover state), copied and broken three ways: a hook that
-raises, a typo in a hook, a state written past its declared width."""
+The world is ``tests/data/battery`` (rovers on batteries: per-rover state), copied and broken four ways: a hook that
+raises, a typo in a hook, a state written past its declared width, a hook that lacks a parameter."""
 
 import json
 import os
@@ -27,6 +27,9 @@ MISTAKES = {   # name: (the line of battery.py, its broken form, what the one li
              r"move in .*battery\.py:\d+ does not compile: NameError: name 'move_flatt' is not defined"),
     "narrow": ("bat[q, 1] += used  # SPENT", "bat[q, 2] = used  # SPENT",
                r"Battery's hook move \(.*battery\.py\) writes outside its state 'battery' \(rover, width 2"),
+    "arity": ("a0, a1, w, s):", "a0, a1, w):",
+              r"world hook move \(.*battery\.py:\d+\) takes 8 parameters \(x, .*, w\); a move hook takes 9: "
+              r"\(x, y, heading, sin_h, cos_h, a0, a1, w, s\)"),
 }
 
 

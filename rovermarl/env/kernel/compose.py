@@ -15,12 +15,14 @@ from __future__ import annotations
 import functools
 import hashlib
 import importlib.util
+import inspect
 import os
 import sys
 import sysconfig
 import types
 from pathlib import Path
 
+from rovermarl import errors
 from rovermarl.env.kernel import fused
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.jit import PACKAGE
@@ -60,6 +62,11 @@ def _import_path(name: str, fn) -> tuple[str, str, str]:
     module, attr = py.__module__, py.__qualname__
     if "." in attr or getattr(sys.modules.get(module), attr, None) is not fn:
         raise TypeError(f"world hook {name}={module}.{attr} must be a top-level function of its module")
+    got, want = (list(inspect.signature(f).parameters) for f in (py, getattr(ROVERS, name).py_func))
+    if len(got) != len(want):      # else numba's binding error, from the rollout, names neither the hook nor its file
+        raise errors.PluginError(f"world hook {name} ({py.__code__.co_filename}:{py.__code__.co_firstlineno}) takes "
+                                 f"{len(got)} parameters ({', '.join(got)}); a {name} hook takes {len(want)}: "
+                                 f"({', '.join(want)})")
     return name, module, attr
 
 
