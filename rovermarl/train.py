@@ -43,7 +43,7 @@ from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.atomic import check_output_dir  # noqa: E402
 from rovermarl.record.safe_read import Unsafe  # noqa: E402
 from rovermarl.resources import CONF_DIR  # noqa: E402
-from rovermarl.runner.compile import announce_and_warm  # noqa: E402
+from rovermarl.runner.compile import announce, warm  # noqa: E402
 from rovermarl.runner.job import all_finished, run_job  # noqa: E402
 from rovermarl.runner.validate import validate  # noqa: E402
 
@@ -162,16 +162,15 @@ def connect(cfgs: list[DictConfig]) -> None:
 
 
 def _compile_while_ray_starts(cfgs: list[DictConfig]) -> None:
-    """A first run compiles the kernel: said before, done here once (Ray's workers then load it), left out of the
-    rates the jobs report (:mod:`rovermarl.runner.compile`). It compiles on one core in a thread while Ray starts on
-    the other (a daemon: a failed start or a signal does not wait for it)."""
-    failed: list[BaseException] = []
+    """A first run compiles the kernel: said before Ray starts (it holds file descriptor 2 meanwhile), done here once
+    (Ray's workers then load it), left out of the jobs' rates (:mod:`rovermarl.runner.compile`); in a thread on one
+    core while Ray starts on the other (a daemon: a failed start or a signal does not wait for it)."""
+    todo = announce(cfgs, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr, flush=True))
+    seconds, failed = [], []
 
     def compile_() -> None:
         try:
-            seconds = announce_and_warm(cfgs, log=lambda m: print(f"{PROG}: {m}", file=sys.stderr, flush=True))
-            if seconds is not None:
-                print(f"{PROG}: compiled in {seconds:.0f} s; cached for later runs", file=sys.stderr, flush=True)
+            seconds.extend(warm(cfg) for cfg in todo)
         except BaseException as e:  # re-raised in the main thread
             failed.append(e)
 
@@ -181,6 +180,8 @@ def _compile_while_ray_starts(cfgs: list[DictConfig]) -> None:
     thread.join()
     if failed:
         raise failed[0]
+    if todo:
+        print(f"{PROG}: compiled in {sum(seconds):.0f} s; cached for later runs", file=sys.stderr, flush=True)
 
 
 def _all_finished(args, cfgs: list[DictConfig]) -> bool:

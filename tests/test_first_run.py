@@ -23,6 +23,15 @@ def test_a_cold_first_run_announces_the_compile_and_leaves_it_out_of_its_rate(tm
     assert second.returncode == 0 and "compiles" not in second.stderr
 
 
+def test_the_default_launch_on_ray_announces_the_compile_before_it(tmp_path):
+    """Ray holds file descriptor 2 while it starts, beside the compile: the notice comes before, not into it."""
+    run = run_cli("generations=20", "seeds=1", "record=off", f"hydra.run.dir={tmp_path / 'a'}",
+                  env={"NUMBA_CACHE_DIR": str(tmp_path / "cache")}, timeout=1200)
+    assert run.returncode == 0, run.stderr[-2000:]
+    notice = run.stderr.find("numba compiles the rover world's kernel (rollout, evaluate)")
+    assert 0 <= notice < run.stderr.find("compiled in "), run.stderr[-2000:]
+
+
 def test_warmup_compiles_ahead(tmp_path):
     env = {"NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     warm = run_cli("setup=duo", module="rovermarl.warmup", env=env, timeout=1200)

@@ -1,6 +1,6 @@
-"""A job's first run compiles: whether it will (:func:`cold`), and compiling ahead by running the job briefly
-(:func:`warm`), which ``rovermarl.train`` does once in the driver, saying so, and ``python -m rovermarl.warmup`` does on
-request."""
+"""A job's first run compiles: whether it will (:func:`cold`, said by :func:`announce`), and compiling ahead by running
+the job briefly (:func:`warm`), which ``rovermarl.train`` does once in the driver, and ``python -m rovermarl.warmup``
+does on request."""
 
 from __future__ import annotations
 
@@ -56,9 +56,9 @@ def warm(cfg: DictConfig) -> float:
     return time.perf_counter() - t0
 
 
-def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
-    """If a job's kernel is not cached: say so, compile it in this process (one job per world and precision) and
-    return the seconds; None when everything was cached."""
+def announce(cfgs: list[DictConfig], log=print) -> list[DictConfig]:
+    """If a job's kernel is not cached, say so; returns the jobs to compile ahead (:func:`warm`), one per world and
+    precision, empty when everything is cached."""
     todo, seen, what = [], set(), []
     for cfg in cfgs:
         key = (str(cfg.env.get("_target_")), str(cfg.env.dtype), str(cfg.env.reward), str(cfg.algorithm._target_))
@@ -66,9 +66,8 @@ def announce_and_warm(cfgs: list[DictConfig], log=print) -> float | None:
             seen.add(key)
             todo.append(cfg)
             what += [f"{name} ({', '.join(fns)})" for name, fns in missing.items()]
-    if not todo:
-        return None
-    said()                                             # the world's own notice would repeat this one
-    log(f"first run of this code here: numba compiles {' and '.join(what)} for this machine (about 30 s on an idle "
-        "core, once; later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
-    return sum(warm(cfg) for cfg in todo)
+    if todo:
+        said()                                         # the world's own notice would repeat this one
+        log(f"first run of this code here: numba compiles {' and '.join(what)} for this machine (about 30 s on an "
+            "idle core, once; later runs load it from the cache; python -m rovermarl.warmup compiles ahead)")
+    return todo
