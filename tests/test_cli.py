@@ -81,7 +81,7 @@ def test_user_selector_on_searchpath_without_editing_the_package(tmp_path):
 
 
 def test_a_selector_choosing_outside_its_arms_stops_the_cli_in_one_line(tmp_path):
-    """On Ray as in this process: one line naming the selector, exit 1."""
+    """On Ray as in this process: one line naming the selector and its file, exit 1."""
     (tmp_path / "sev.py").write_text("from rovermarl.algorithms.operators.selectors import FixedK\n\n\n"
                                      "class SevenK(FixedK):\n    def choose(self, rng):\n        return 7\n")
     (tmp_path / "conf" / "k").mkdir(parents=True)
@@ -91,8 +91,8 @@ def test_a_selector_choosing_outside_its_arms_stops_the_cli_in_one_line(tmp_path
                    env={"PYTHONPATH": str(tmp_path)})
     lines = proc.stderr.strip().splitlines()
     assert proc.returncode == 1 and len(lines) == 1, proc.stderr[-3000:]
-    assert lines[0] == ("rovermarl.train: error: generations=10,k=seven: k-selector SevenK chose k=7; allowed: 1 "
-                        "(its arms within 1..N=4)")
+    assert lines[0] == ("rovermarl.train: error: generations=10,k=seven: k-selector sev.SevenK "
+                        f"({tmp_path / 'sev.py'}) chose k=7; allowed: 1 (its arms within 1..N=4)")
 
 
 def test_more_workers_than_ray_cpus_completes_capped(tmp_path):

@@ -162,7 +162,8 @@ class SevenK(FixedK):
 def test_a_selector_choosing_outside_its_arms_stops_the_run():
     cfg = make_cfg("k=1", "generations=5")
     cfg.k._target_ = f"{__name__}.SevenK"
-    with pytest.raises(AlgorithmError, match=r"^k-selector SevenK chose k=7; allowed: 1 "):
+    want = rf"^k-selector {__name__}.SevenK \(.*test_evolution\.py\) chose k=7; allowed: 1 "
+    with pytest.raises(AlgorithmError, match=want):
         Run(cfg, seed=0).advance(5)
 
 

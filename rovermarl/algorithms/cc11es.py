@@ -154,7 +154,9 @@ class CC11ES(Algorithm):
     def allowed_k(self, k, selector) -> int:
         """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""
         if k not in self.allowed or isinstance(k, bool):
-            raise AlgorithmError(f"k-selector {type(selector).__name__} chose k={k!r}; allowed: "
+            cls = type(selector)
+            raise AlgorithmError(f"k-selector {cls.__module__}.{cls.__qualname__} ({inspect.getsourcefile(cls)}) "
+                                 f"chose k={k!r}; allowed: "
                                  f"{', '.join(map(str, sorted(self.allowed)))} (its arms within 1..N="
                                  f"{self.world.n_rovers})")
         return k
