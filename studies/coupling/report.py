@@ -49,21 +49,16 @@ def cells(results: Path) -> dict[tuple[str, int], np.ndarray]:
 
 def drops(found: dict) -> dict[str, dict]:
     """Per family: ``base`` (the c = 1 estimate), ``half`` and ``surely`` (the first levels below half of it, None:
-    none of those run), ``top`` (the highest level run)."""
+    none of those run), ``top`` (the highest level run), ``at`` ({c: the estimate} of every level run)."""
     out = {}
     for learner in LEARNERS:
         if (learner, 1) not in found:
             continue
-        base = stats.median_exact(found[(learner, 1)])[0]
-        half = surely = None
-        levels = [c for c in LEVELS if (learner, c) in found]
-        for c in levels[1:]:
-            est = stats.median_exact(found[(learner, c)])[0]
-            if half is None and est.value < base.value / 2:
-                half = c
-            if surely is None and est.high < base.value / 2:
-                surely = c
-        out[learner] = {"base": base, "half": half, "surely": surely, "top": levels[-1]}
+        at = {c: stats.median_exact(found[(learner, c)])[0] for c in LEVELS if (learner, c) in found}
+        base = at[1]
+        half = next((c for c, est in at.items() if c > 1 and est.value < base.value / 2), None)
+        surely = next((c for c, est in at.items() if c > 1 and est.high < base.value / 2), None)
+        out[learner] = {"base": base, "half": half, "surely": surely, "top": max(at), "at": at}
     return out
 
 
@@ -118,12 +113,43 @@ def merl(d: dict) -> list[str]:
 
     text = ("MERL (ICML 2020) reports that policy-gradient MARL loses performance as the coupling of its rover domain "
             "grows while evolution keeps it. Here, at equal agent-steps, the held-out median fell below half its "
-            "c = 1 level for ")
-    text += ", ".join(fell(gradient) + fell(evolution)) or "no family"
-    text += "; it did not fall below half for " + (", ".join(held(gradient) + held(evolution)) or "no family") + "."
-    return [text, "", "This compares trends, not numbers: MERL's world, learners (MADDPG, MATD3, MERL) and budgets "
-            "differ from these, and a level's median from 5-8 runs says little about a single level's difference "
-            "(the intervals above)."]
+            "c = 1 level for " + (", ".join(fell(gradient) + fell(evolution)) or "no family"))
+    if kept := held(gradient) + held(evolution):
+        text += "; it did not fall below half for " + ", ".join(kept)
+    return [text + ".", "", order(d, gradient, evolution), *highest(d), "", "This compares trends, not numbers: "
+            "MERL's world, learners (MADDPG, MATD3, MERL) and budgets differ from these, and a level's median from 5-8 "
+            "runs says little about a single level's difference (the intervals above)."]
+
+
+def order(d: dict, gradient: list[str], evolution: list[str]) -> str:
+    """Whether the levels of falling below half order the two kinds of family (one that never fell: past its top)."""
+    def kept(names):   # the highest level each kept half its c = 1 level at
+        return [(d[n]["half"] or d[n]["top"] + 1) - 1 for n in names if d[n]["base"].value > 0]
+
+    g, e = kept(gradient), kept(evolution)
+    if not g or not e:
+        return "No ordering by kind: a kind has no family that scores above 0 at c = 1."
+    if min(g) > max(e):
+        return (f"So at this budget every policy-gradient family kept half its c = 1 level to a higher coupling (c = "
+                f"{min(g)} or more) than any evolutionary family (c = {max(e)} at most): on this measure the data run "
+                "against MERL's trend, not with it.")
+    if min(e) > max(g):
+        return (f"So at this budget every evolutionary family kept half its c = 1 level to a higher coupling (c = "
+                f"{min(e)} or more) than any policy-gradient family (c = {max(g)} at most): MERL's trend.")
+    return "The levels at which families fall below half do not order the two kinds: neither trend is shown."
+
+
+def highest(d: dict) -> list[str]:
+    """At the highest level every family has run: which family's median is highest, and which score 0."""
+    top = min(v["top"] for v in d.values())
+    if top < 2 or any(top not in v["at"] for v in d.values()):
+        return []
+    at = {n: v["at"][top] for n, v in d.items()}
+    best = max(at, key=lambda n: at[n].value)
+    zero = [LEARNERS[n] for n in at if at[n].value == 0]
+    return ["", f"At c = {top}, the highest coupling every family has run, the highest held-out median is "
+            f"{LEARNERS[best]}'s, {at[best].fmt(3)}" + (f"; a median of 0 for {', '.join(zero)}" if zero else "")
+            + " (a median of 0: at least half the runs observe no POI with its c rovers on any held-out start)."]
 
 
 def figure(results: Path, formats=("png",)) -> list[Path]:
