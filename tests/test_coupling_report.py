@@ -58,7 +58,8 @@ def test_when_every_family_falls_the_report_says_which_kind_kept_half_longer_and
     assert "did not fall below half" not in text and "no family" not in text
     assert "every policy-gradient family kept half its c = 1 level to a higher coupling (c = 3 or more)" in text
     assert "(c = 1 at most): on this measure the data run against MERL's trend" in text
-    assert "At c = 4, the highest coupling every family has run, the highest held-out median is CCEA D++'s" in text
+    assert ("At c = 4, the highest coupling every family has run, the highest held-out median is CCEA D++'s, 0.5 "
+            "[0.5, 0.5], whose interval overlaps no other's") in text
     assert "a median of 0 for PPO (SB3)" in text
     d["ccea_dpp"]["half"] = 4
     assert "neither trend is shown" in " ".join(report.merl(d))

@@ -147,8 +147,11 @@ def highest(d: dict) -> list[str]:
     at = {n: v["at"][top] for n, v in d.items()}
     best = max(at, key=lambda n: at[n].value)
     zero = [LEARNERS[n] for n in at if at[n].value == 0]
+    near = [LEARNERS[n] for n in at if n != best and at[n].high >= at[best].low]     # intervals that reach it
+    near = ("every other family's" if len(near) == len(at) - 1 else ", ".join(near) + "'s") if near else "no other's"
     return ["", f"At c = {top}, the highest coupling every family has run, the highest held-out median is "
-            f"{LEARNERS[best]}'s, {at[best].fmt(3)}" + (f"; a median of 0 for {', '.join(zero)}" if zero else "")
+            f"{LEARNERS[best]}'s, {at[best].fmt(3)}, whose interval overlaps {near}"
+            + (f"; a median of 0 for {', '.join(zero)}" if zero else "")
             + " (a median of 0: at least half the runs observe no POI with its c rovers on any held-out start)."]
 
 
