@@ -188,17 +188,12 @@ def test_a_lock_file_hard_linked_to_a_file_elsewhere_is_refused_and_left_as_it_w
     assert _snapshot(victim) == before
 
 
-def test_a_lock_is_never_written_in_place_and_names_its_holder(tmp_path):
+def test_a_dead_holders_lock_file_is_taken_over_and_names_the_new_holder(tmp_path):
     (tmp_path / "d").mkdir()
-    (tmp_path / "d" / ".lock").write_text("an old holder's line\n")
-    old = os.stat(tmp_path / "d" / ".lock").st_ino
-    keep = open(tmp_path / "d" / ".lock")                         # the old file, seen through another descriptor
+    (tmp_path / "d" / ".lock").write_text("PID 1 on elsewhere since long ago, a line longer than the new holder's\n")
     with lock.hold(tmp_path / "d"):
         line = (tmp_path / "d" / ".lock").read_text()
-        assert line.startswith(f"PID {os.getpid()} on {socket.gethostname()} since ")
-        assert os.stat(tmp_path / "d" / ".lock").st_ino != old
-    assert keep.read() == "an old holder's line\n"
-    keep.close()
+        assert line.startswith(f"PID {os.getpid()} on {socket.gethostname()} since ") and line.count("\n") == 1
 
 
 HOLD = """
@@ -373,3 +368,14 @@ def test_a_run_dir_swapped_for_a_link_during_replay_resim_takes_no_file_outside(
             swapper.end()
         assert _snapshot(victim) == before, f"round {i}"
     assert refused
+
+
+def test_a_lock_file_replaced_while_being_locked_is_refused_and_the_other_file_left_as_it_was(tmp_path):
+    """The check filelock's on_acquired runs: the descriptor it locked must be the held dir's own .lock."""
+    (tmp_path / "d").mkdir()
+    (tmp_path / "d" / ".lock").write_text("")
+    (tmp_path / "other").write_text("precious\n")
+    with atomic.beneath(tmp_path / "d") as dfd, open(tmp_path / "other", "r+b") as other:
+        with pytest.raises(Unsafe, match=r"\.lock was replaced while it was being locked: refused"):
+            lock._stamp(dfd, tmp_path / "d" / ".lock", other.fileno())
+    assert (tmp_path / "other").read_text() == "precious\n"

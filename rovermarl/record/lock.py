@@ -1,36 +1,35 @@
-"""One writer per output directory: an exclusive ``flock`` on ``<dir>/.lock``, held for the life of a launch.
+"""One writer per output directory: ``filelock``'s ``flock`` on ``<dir>/.lock``, held for the life of a launch.
 
-The dir is opened once (:func:`rovermarl.record.atomic.beneath`): the lock file and every write of the block are
-reached through its descriptor, never through a link. The lock file is opened with ``O_NOFOLLOW``, never truncated
-nor written: a link, a non-regular file or a file with other hard links there is refused in one line
-(:class:`~rovermarl.record.safe_read.Unsafe`). Once locked, the holder's line (PID, host, since when) goes into a
-new file that it locks too, then renamed onto ``.lock``; a process that locked the replaced file sees that the name
-no longer leads to it and tries again. (``filelock`` opens the lock by path, not beneath a held dir, and has no
-hard-link check: hence this module.)
+The dir is opened once (:func:`rovermarl.record.atomic.beneath`) and every write of the block is reached through its
+descriptor. ``filelock`` (>= 4.3) opens the lock file with ``O_NOFOLLOW`` and never truncates it; before it does, and
+again once it holds the lock, the file is checked beneath that descriptor: a link, a non-regular file, a file with
+other hard links or one that is not this dir's own is refused in one line (:class:`~rovermarl.record.safe_read.Unsafe`)
+and left as it was. Only then is the holder's line (PID, host, since when) written into it.
 
 A second launch on the same sweep or job dir stops at once with one line that names the holder; the lock goes away
 with the holder's process, however it ends, so a killed launch never blocks the next. Within one process the lock
 is re-entrant (a single-run launch and its job share one dir). A launch that stops before writing anything leaves
-no directory behind: the dirs it created for the lock are removed with it.
+no directory behind: the lock file and the dirs it created for the lock are removed with it.
 """
 
 from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import os
 import socket
 import stat
 import time
 from pathlib import Path
 
-from rovermarl.record.atomic import atomic_open, beneath
+import filelock
+
+from rovermarl.record.atomic import beneath
 from rovermarl.record.safe_read import Unsafe
 
 NAME = ".lock"
 _HELD: set[Path] = set()                                 # directories this process holds
-TRIES = 100                                              # a lock file replaced under us this often: give up
+TRIES = 100                                              # a lock file removed under us this often: give up
 
 
 class Locked(Exception):
@@ -50,10 +49,11 @@ def hold(directory: Path):
     for _ in range(TRIES):
         with beneath(directory) as dfd:
             try:
-                fd = _acquire(dfd, directory)
+                held = _acquire(dfd, directory)
             except FileNotFoundError:     # the dir was removed meanwhile (by a launch that wrote nothing): again
                 continue
-            stamped = _stamp(directory, fd)
+            if held is None:              # its lock file was: again
+                continue
             try:
                 _HELD.add(key)
                 yield directory
@@ -65,59 +65,55 @@ def hold(directory: Path):
                     with contextlib.suppress(OSError):
                         for d in created:
                             d.rmdir()
-                os.close(stamped)                                          # closing releases the lock
+                held.release()
             return
-    raise Locked(f"{directory} kept disappearing ({TRIES} tries); another launch is using it")
+    raise Locked(f"{directory}'s lock file kept disappearing ({TRIES} tries); another launch is using it")
 
 
-def _stamp(directory: Path, fd: int) -> int:
-    """The holder's line (PID, host, since when) in a new lock file, locked by this process and renamed onto the
-    one ``fd`` holds; returns the new one's descriptor (``fd`` is closed)."""
-    stamped = None
-    try:
-        with atomic_open(directory / NAME, "w") as f:
-            f.write(f"PID {os.getpid()} on {socket.gethostname()} since {time.strftime('%Y-%m-%d %H:%M:%S')}\n")
-            f.flush()
-            stamped = os.dup(f.fileno())                                    # kept open: it holds the lock
-            fcntl.flock(stamped, fcntl.LOCK_EX | fcntl.LOCK_NB)             # a new file: nobody else has it
-    except BaseException:
-        if stamped is not None:
-            os.close(stamped)
-        raise
-    finally:
-        os.close(fd)
-    return stamped
-
-
-def _acquire(dfd: int, directory: Path) -> int:
-    """A descriptor of ``directory``'s lock file, flocked by this process; :class:`Locked` if another holds it."""
+def _acquire(dfd: int, directory: Path) -> filelock.FileLock | None:
+    """``directory``'s lock, held by this process; None if its file was removed meanwhile (try again);
+    :class:`Locked` if another process holds it."""
     path = directory / NAME
-    for _ in range(TRIES):
-        try:                       # O_CREAT without O_TRUNC: an existing file is not changed
-            fd = os.open(NAME, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, 0o666,
-                         dir_fd=dfd)
-        except OSError as e:
-            if e.errno != errno.ELOOP:
-                raise OSError(e.errno, e.strerror, str(path)) from None
-            raise Unsafe(f"{path} is a symbolic link: refused (remove it; a lock is this dir's own file)") from None
-        st = os.fstat(fd)
-        problem = ("is not a regular file" if not stat.S_ISREG(st.st_mode) else
-                   f"has {st.st_nlink} hard links (a file elsewhere shares it)" if st.st_nlink > 1 else None)
-        if problem:
-            os.close(fd)
-            raise Unsafe(f"{path} {problem}: refused (remove it; a lock is this dir's own file)")
+    with contextlib.suppress(FileNotFoundError):
+        _own(os.stat(NAME, dir_fd=dfd, follow_symlinks=False), path)
+    lock = filelock.FileLock(path, blocking=False, thread_local=False, preserve_lock_file=True,
+                             on_acquired=lambda fd: _stamp(dfd, path, fd))
+    try:
+        lock.acquire()
+    except filelock.Timeout:
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
-            os.close(fd)
-            raise Locked(f"{directory} is in use by {holder}; wait for it to finish or choose another "
-                         "output dir") from None
-        try:
-            now = os.stat(NAME, dir_fd=dfd, follow_symlinks=False)
+            fd = os.open(NAME, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC, dir_fd=dfd)
         except FileNotFoundError:
-            now = None
-        if now is not None and (now.st_ino, now.st_dev) == (st.st_ino, st.st_dev):
-            return fd
-        os.close(fd)                                     # replaced by its holder's new file meanwhile: again
-    raise Locked(f"{directory}'s lock file kept changing ({TRIES} tries); another launch is using it")
+            return None
+        try:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "another process"
+        finally:
+            os.close(fd)
+        raise Locked(f"{directory} is in use by {holder}; wait for it to finish or choose another output dir") from None
+    except OSError as e:
+        if e.errno == errno.ELOOP:
+            raise Unsafe(f"{path} is a symbolic link: refused (remove it; a lock is this dir's own file)") from None
+        raise
+    return lock
+
+
+def _own(st: os.stat_result, path: Path) -> None:
+    """Refuse a lock file that is a link, not a regular file, or shares its data with a file elsewhere."""
+    problem = ("is a symbolic link" if stat.S_ISLNK(st.st_mode) else
+               "is not a regular file" if not stat.S_ISREG(st.st_mode) else
+               f"has {st.st_nlink} hard links (a file elsewhere shares it)" if st.st_nlink > 1 else None)
+    if problem:
+        raise Unsafe(f"{path} {problem}: refused (remove it; a lock is this dir's own file)")
+
+
+def _stamp(dfd: int, path: Path, fd: int) -> None:
+    """``filelock``'s ``on_acquired``: once locked, check that ``fd`` is the held dir's own lock file, then write the
+    holder's line into it (raising makes ``filelock`` let go of the lock)."""
+    st = os.fstat(fd)
+    _own(st, path)
+    now = os.stat(NAME, dir_fd=dfd, follow_symlinks=False)
+    if (now.st_ino, now.st_dev) != (st.st_ino, st.st_dev):
+        raise Unsafe(f"{path} was replaced while it was being locked: refused (another process is changing this dir)")
+    line = f"PID {os.getpid()} on {socket.gethostname()} since {time.strftime('%Y-%m-%d %H:%M:%S')}\n"
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, line.encode(), 0)
