@@ -275,7 +275,7 @@ def _adopt_orphans() -> None:
 def _sweep_lock(args):
     """The launch holds its output dir's lock and writes only beneath it (the sweep dir of a multirun, each job then
     its own job dir's too, in :func:`run_job`; the run dir of a single run)."""
-    return lock.hold(args.out_dir) if getattr(args, "out_dir", None) else contextlib.nullcontext()
+    return lock.hold(args.out_dir, clean=True) if getattr(args, "out_dir", None) else contextlib.nullcontext()
 
 
 class Terminated(KeyboardInterrupt):

@@ -1,6 +1,7 @@
 """One writer per output dir: a second launch on a sweep (or job) dir that another launch holds stops at once in
 one line naming the holder, and computes nothing; the first completes with every recording verifying."""
 
+import os
 import socket
 import subprocess
 import sys
@@ -59,3 +60,19 @@ def test_a_held_job_dir_refuses_another_writer_and_is_free_after(tmp_path):
     holder.kill()
     holder.wait()
     assert run_job(cfg, job)["seeds"] == [0]           # a dead holder's lock is gone with its process
+
+
+def test_a_launchs_lock_removes_the_temp_files_of_a_killed_launch_and_nothing_else(tmp_path):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True).stdout.strip()                 # a process that has ended: its PID runs nothing
+    d = tmp_path / "sweep"
+    (d / "figures").mkdir(parents=True)
+    left = d / "figures" / f".curves_duo.pdf.{dead}.8004aad7.tmp"          # atomic_open's name for a temp file
+    mine = d / f".summary.json.{os.getpid()}.0123abcd.tmp"                  # a running process's: kept
+    other = d / "figures" / ".notes.tmp"                                    # not atomic_open's: kept
+    for p in (left, mine, other):
+        p.write_text("partial")
+    with lock.hold(d):                                                      # a job's lock: cleans nothing
+        assert left.exists()
+    with lock.hold(d, clean=True):
+        assert not left.exists() and mine.exists() and other.exists()

@@ -7,7 +7,9 @@
   a link between a check and a write never takes a file elsewhere. A ``beneath`` inside another one's dir is opened
   by that walk too.
 - :func:`atomic_open`: a file is never truncated or appended in place: a new temp file is made in its (opened) dir,
-  written, fsynced, then renamed onto its name within that dir (``renameat``); a failed block leaves nothing.
+  written, fsynced, then renamed onto its name within that dir (``renameat``); a failed block leaves nothing, and
+  the temp file of a process killed meanwhile (SIGKILL) is removed by the next launch that holds the dir
+  (:func:`remove_stale`).
 - :func:`replace`, :func:`remove`: a rename or a removal within one dir, by its descriptor.
 - :func:`refuse_shared`: a file that others write in place (Hydra's ``.hydra/*.yaml``, ``multirun.yaml``, its
   ``train.log``) that is a link or has other hard links is refused before a launch.
@@ -23,6 +25,7 @@ import contextlib
 import contextvars
 import errno
 import os
+import re
 import secrets
 import signal
 import stat
@@ -121,7 +124,7 @@ def atomic_open(path: Path, mode: str = "wb", aside: Path | None = None):
     never written: a link or hard link there is replaced, not followed. An OSError of a write names ``path``."""
     path = Path(path)
     dfd = open_dir(path.parent, create=True)
-    tmp = f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+    tmp = f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"                   # (TMP matches it)
     try:
         try:
             fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666, dir_fd=dfd)
@@ -149,6 +152,34 @@ def atomic_open(path: Path, mode: str = "wb", aside: Path | None = None):
                 os.unlink(tmp, dir_fd=dfd)
     finally:
         os.close(dfd)
+
+
+TMP = re.compile(r"\..+\.(\d+)\.[0-9a-f]{8}\.tmp")   # atomic_open's temp file: .<name>.<pid>.<8 hex>.tmp
+
+
+def remove_stale(dfd: int) -> int:
+    """Remove, under the dir opened as ``dfd`` (links not followed), the temp files of :func:`atomic_open` whose
+    process is no longer running (killed before it could remove them); called by the dir's lock holder, so no other
+    launch writes there. Returns how many."""
+    removed = 0
+    for _, _, files, fd in os.fwalk(".", dir_fd=dfd):
+        for name in files:
+            m = TMP.fullmatch(name)
+            if m and not _running(int(m.group(1))):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(name, dir_fd=fd)
+                    removed += 1
+    return removed
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:                                              # another user's process
+        return True
+    return True
 
 
 def _settle(f, path: Path) -> None:

@@ -9,7 +9,8 @@ and left as it was. Only then is the holder's line (PID, host, since when) writt
 A second launch on the same sweep or job dir stops at once with one line that names the holder; the lock goes away
 with the holder's process, however it ends, so a killed launch never blocks the next. Within one process the lock
 is re-entrant (a single-run launch and its job share one dir). A launch that stops before writing anything leaves
-no directory behind: the lock file and the dirs it created for the lock are removed with it.
+no directory behind: the lock file and the dirs it created for the lock are removed with it. A launch's and a job's
+lock, once held, removes the temp files that a launch killed there left (:func:`rovermarl.record.atomic.remove_stale`).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from pathlib import Path
 
 import filelock
 
-from rovermarl.record.atomic import beneath
+from rovermarl.record.atomic import beneath, remove_stale
 from rovermarl.record.safe_read import Unsafe
 
 NAME = ".lock"
@@ -37,9 +38,10 @@ class Locked(Exception):
 
 
 @contextlib.contextmanager
-def hold(directory: Path):
+def hold(directory: Path, clean: bool = False):
     """Hold ``directory``'s lock (creating the directory) for the ``with`` block, every write of which stays beneath
-    it; :class:`Locked` if taken."""
+    it; :class:`Locked` if taken. ``clean``: first remove the temp files a killed launch left under it (a launch's and
+    a job's lock, taken before they write)."""
     directory = Path(directory)
     key = directory.resolve()
     if key in _HELD:
@@ -56,6 +58,8 @@ def hold(directory: Path):
                 continue
             try:
                 _HELD.add(key)
+                if clean:
+                    remove_stale(dfd)
                 yield directory
             finally:
                 _HELD.discard(key)

@@ -34,15 +34,6 @@ from rovermarl.record.safe_read import RunSize, load_npz, open_regular, read_jso
 log = logging.getLogger("rovermarl")
 
 
-def remove_temp_files(job_dir: Path) -> None:
-    """Remove the temp files that writers killed mid-write left in a job dir and its run dirs (the caller holds the
-    job dir's lock, so no live writer owns one)."""
-    job_dir = Path(job_dir)
-    for pattern in (".*.tmp", "runs/seed_*/.*.tmp", "runs/seed_*/.checkpoint.*.bin"):
-        for path in job_dir.glob(pattern):
-            remove(path)
-
-
 def run_dir(job_dir: Path, seed: int) -> Path:
     return Path(job_dir) / "runs" / f"seed_{seed:03d}"
 

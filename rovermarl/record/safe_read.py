@@ -69,10 +69,10 @@ def refuse_odd(path: Path, what: str = "results dir") -> None:
     except FileNotFoundError:
         return
     if stat.S_ISLNK(mode):
-        raise Unsafe(f"{path} is a symbolic link: a {what} is read and written only through its own files; "
+        raise Unsafe(f"{path} is a symbolic link: this {what} is read and written only through its own files; "
                      "remove the link or copy the data in")
     if not (stat.S_ISDIR(mode) or stat.S_ISREG(mode)):
-        raise Unsafe(f"{path} is not a regular file or directory (a FIFO, socket or device): refused in a {what}")
+        raise Unsafe(f"{path} is not a regular file or directory (a FIFO, socket or device): refused in this {what}")
 
 
 def inside(path: Path, root: Path) -> Path:

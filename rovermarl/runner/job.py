@@ -26,7 +26,6 @@ from rovermarl.record.outputs import (
     launch_progress,
     load_score,
     outcome,
-    remove_temp_files,
     run_dir,
     save_run,
     summarize,
@@ -51,7 +50,7 @@ def run_job(cfg: DictConfig, job_dir: Path, name: str = "job", choices: dict | N
     locked meanwhile (:mod:`rovermarl.record.lock`: another launch on it raises ``Locked``)."""
     validate(cfg)
     check_tree(job_dir, "job dir")                      # a copied results dir: no link followed, no FIFO read
-    with lock.hold(job_dir):
+    with lock.hold(job_dir, clean=True):                # clean: temp files a killed launch left
         return _run_job(cfg, Path(job_dir), name, choices)
 
 
@@ -85,7 +84,6 @@ def _current(summary: dict, seeds: list[int], levels) -> bool:
 
 def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) -> dict:
     job, job_dir = to_plain(cfg), Path(job_dir)
-    remove_temp_files(job_dir)                                          # left by a launch that was killed
     key, built = config_hash(job), parts(job)
     series = built.algorithm.series
     per_generation = built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"])
