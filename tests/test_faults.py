@@ -124,3 +124,17 @@ def _raises(f) -> bool:
     except OSError:
         return True
     return False
+
+
+def test_a_launch_killed_writing_its_figures_leaves_no_temp_file_after_the_relaunch(tmp_path):
+    """Found from outside: a sweep killed (SIGKILL) while writing figures/index.json kept its temp file after a
+    relaunch, which cleaned only job dirs."""
+    sweep = tmp_path / "sweep"
+    args = ("-m", "k=1", "setup=duo", "generations=50", "seeds=1", "parallel=serial", "record=off",
+            f"hydra.sweep.dir={sweep}")
+    killed = run_cli(*args, env={FAULT: "index.json:kill"}, timeout=300)
+    assert killed.returncode == -signal.SIGKILL, killed.stderr[-2000:]
+    assert [p.name for p in (sweep / "figures").glob(".index.json.*.tmp")]        # the fault left it
+    relaunch = run_cli(*args, timeout=300)
+    assert relaunch.returncode == 0, relaunch.stderr[-2000:]
+    assert not [p for p in sweep.rglob("*.tmp")] and (sweep / "figures" / "index.json").is_file()
