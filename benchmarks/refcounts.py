@@ -13,7 +13,6 @@ tree with either build.
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import subprocess
@@ -24,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from versus import DTYPED  # noqa: E402  (same folder)
+from versus import DTYPED, tree_args  # noqa: E402  (same folder)
 
 ROOT = Path(__file__).resolve().parents[1]
 PLAIN = '''import os
@@ -44,14 +43,7 @@ if os.environ["REFCOUNTS"] == "plain":
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("other", type=Path, help="the other tree's root (holding rovermarl/ and conf/)")
-    p.add_argument("--pairs", type=int, default=4)
-    p.add_argument("--rounds", type=int, default=5)
-    p.add_argument("--calls", type=int, default=400)
-    p.add_argument("--core", type=int, default=None, help="the pinned core (default: the last this process may use)")
-    a = p.parse_args()
-    core = sorted(os.sched_getaffinity(0))[-1] if a.core is None else a.core
+    a, core = tree_args(__doc__.splitlines()[0])
     trees = {"package": ROOT, "other": a.other.resolve()}
     caches = Path(tempfile.mkdtemp(prefix="rovermarl-refcounts-"))
     arms = [(tree, build) for tree in trees for build in ("atomic", "plain")]

@@ -23,8 +23,10 @@ from intrinsics import CHILD, ROOT, run  # noqa: E402  (same folder)
 DTYPED = CHILD.replace('world = make_world("duo")', 'world = make_world("duo", dtype=sys.argv[4])')
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def tree_args(description: str) -> tuple[argparse.Namespace, int]:
+    """The command line of a benchmark of this package against another tree, and the core to pin (this one's and
+    ``refcounts.py``'s)."""
+    p = argparse.ArgumentParser(description=description)
     p.add_argument("other", type=Path, help="the other tree's root (holding rovermarl/ and conf/)")
     p.add_argument("--pairs", type=int, default=4)
     p.add_argument("--rounds", type=int, default=5)
@@ -32,8 +34,12 @@ def main() -> None:
     p.add_argument("--core", type=int, default=None, help="the pinned core (default: the last this process may use)")
     a = p.parse_args()
     if DTYPED == CHILD:
-        sys.exit("benchmarks/versus.py: intrinsics.CHILD no longer builds its world as make_world(\"duo\")")
-    core = sorted(os.sched_getaffinity(0))[-1] if a.core is None else a.core
+        sys.exit("benchmarks: intrinsics.CHILD no longer builds its world as make_world(\"duo\")")
+    return a, sorted(os.sched_getaffinity(0))[-1] if a.core is None else a.core
+
+
+def main() -> None:
+    a, core = tree_args(__doc__.splitlines()[0])
     trees = {"package": None, "other": a.other.resolve()}
     load = os.getloadavg()[0]
     out = {"benchmark": "versus", "other": str(trees["other"]), "package": str(ROOT)}
