@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from rovermarl.worlds import FAST, Hooks, World, njit, rover_hooks
 
 
@@ -22,7 +20,6 @@ def twin_end(w, xy, acc, returns, s):
     rover_hooks.score_end(w, xy, acc, returns, s)
 
 
-@dataclass(frozen=True, eq=False)
 class Twin(World):
     """The paper's world, its rollout generated around hooks of another module (``compose``)."""
 

@@ -8,14 +8,12 @@ import pytest
 from rovermarl import errors
 from tests.conftest import ROOT, run_cli
 
-PLUGIN = '''from dataclasses import dataclass
-
+PLUGIN = '''
 import numpy as np
 
 from rovermarl.worlds import World
 
 
-@dataclass(frozen=True, eq=False)
 class Picky(World):
     layout_dim = 1
 

@@ -34,13 +34,11 @@ def test_a_plugins_extra_sensor_rows_change_the_policys_actions():
     assert not np.allclose(world.rollout(team, ic).xy, world.rollout(other, ic).xy)
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
 class Unfilled(Obstacles):
     def obs_blocks(self):
         return [*super().obs_blocks(), ("ghost", -np.ones(3), np.ones(3))]
 
 
-@dataclasses.dataclass(frozen=True, eq=False)
 class Undeclared(Obstacles):
     def obs_blocks(self):
         return super().obs_blocks()[:2]
@@ -91,7 +89,7 @@ def test_moving_pois_matches_a_numpy_resimulation_on_every_return():
 
 
 def _fields(world):
-    return {f.name: getattr(world, f.name) for f in dataclasses.fields(world) if f.name != "poi_xy"} | {
+    return {f.name: getattr(world, f.name) for f in dataclasses.fields(world.params) if f.name != "poi_xy"} | {
         "obs_dim": world.obs_dim, "w_max": world.w_max}
 
 

@@ -43,7 +43,7 @@ def test_a_default_changed_in_the_yaml_is_the_default_everywhere(tmp_path):
 
 
 def test_hidden_is_the_policys_not_a_world_field():
-    assert "hidden" not in {f.name for f in fields(World)}
+    assert "hidden" not in {f.name for f in fields(World.Params)}
     w = World(coupling=(1, 2), value=(1.0, 2.0), policy=MLP(hidden=4))
     assert w.policy.hidden == w.kernel.hidden == 4 and w.n_params == MLP(4).n_params(w.obs_dim)
     assert make_world("duo", hidden=4).n_params == make_world("duo", policy=MLP(4)).n_params
@@ -56,12 +56,12 @@ def test_hidden_is_the_policys_not_a_world_field():
 
 @pytest.mark.parametrize("setup", ["solo", "duo"])
 def test_derived_state_is_cached_properties_only(setup):
-    """Every attribute a built world holds is a field or a cached_property of its class: nothing set by hand."""
+    """Every attribute a built world holds is its params or a cached_property of its class: nothing set by hand."""
     w = make_world(setup)
     w.evaluate(np.zeros((w.n_rovers, w.n_params)), w.run_ic(0))
     cached = {name for klass in type(w).__mro__ for name, v in vars(klass).items()
               if isinstance(v, cached_property)}
-    held = set(vars(w)) - {f.name for f in fields(w)}
+    held = set(vars(w)) - {"params"}
     assert held and held <= cached, held - cached
 
 
@@ -74,3 +74,40 @@ def test_the_kernel_record_has_one_builder():
         else:
             assert type(a) is type(b) and a == b
     assert w.kernel.poi_xy.dtype == np.float32 and w.kernel.reward_mode == 1
+
+
+def test_the_world_holds_its_configuration_as_one_object():
+    """Issue 52 item 3: the configuration is an object the World holds (``world.params``), not its base class."""
+    w = make_world("duo", steps=12)
+    assert not issubclass(World, Params) and type(w.params) is Params and w.steps == w.params.steps == 12
+    again = World(w.params)
+    assert again.params is w.params and again.kernel.steps == 12
+    with pytest.raises(AttributeError, match="immutable"):
+        w.steps = 3
+    import pickle
+    assert repr(pickle.loads(pickle.dumps(w))) == repr(w) and "steps=12" in repr(w)
+    with pytest.raises(TypeError, match=r"World\(params\) takes one Params and no keywords"):
+        World(w.params, steps=3)
+
+
+@pytest.mark.parametrize("body, said", [
+    ("    radius: float = 1.0\n", r"^Bad declares parameters on the World \(radius\): declare them as fields of "
+                                 r"its Params, a @dataclass\(frozen=True\) subclass of World.Params"),
+    ("    class Params(World.Params):\n        radius: float = 1.0\n",
+     r"^Bad.Params is not a dataclass subclass of World.Params"),
+])
+def test_a_parameter_declared_off_its_params_is_refused_in_one_line(body, said):
+    with pytest.raises(TypeError, match=said) as err:
+        exec(f"class Bad(World):\n{body}", {"World": World})
+    assert "\n" not in str(err.value)
+
+
+def test_a_world_made_a_dataclass_is_refused_in_one_line():
+    from dataclasses import dataclass
+
+    @dataclass(frozen=True, eq=False)
+    class Old(World):
+        pass
+
+    with pytest.raises(errors.ConfigError, match=r"^Old=@dataclass: a World is no dataclass: declare them as fields"):
+        make_world("solo", world=Old)

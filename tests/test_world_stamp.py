@@ -13,8 +13,7 @@ import pytest
 
 from tests.conftest import ROOT
 
-PLUGIN = '''from dataclasses import dataclass
-
+PLUGIN = '''
 from rovermarl.worlds import Hooks, move_flat, njit, World
 
 
@@ -25,7 +24,6 @@ def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
         pass  # EDIT
 
 
-@dataclass(frozen=True, eq=False)
 class Drift(World):
     hooks = Hooks(move=move)
 '''

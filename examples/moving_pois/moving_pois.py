@@ -67,7 +67,6 @@ def score_end(w, xy, acc, returns, s):
     reward_at(xy, s[0], w.coupling, w.value, w.obs_radius, returns)
 
 
-@dataclass(frozen=True, eq=False)
 class MovingPois(World):
     """The paper's world with each POI drifting on a circle around its place (``drift_radius``) at a speed drawn
     per episode.
@@ -79,9 +78,20 @@ class MovingPois(World):
     ((16, 10, 2), True)
     """
 
-    drift_radius: float = 2.5
-    speed_low: float = 0.1
-    speed_high: float = 0.4
+    @dataclass(frozen=True, eq=False)
+    class Params(World.Params):
+        drift_radius: float = 2.5
+        speed_low: float = 0.1
+        speed_high: float = 0.4
+
+        def check(self) -> None:
+            errors.number("env.drift_radius", self.drift_radius, 0, lo_open=True)
+            errors.number("env.speed_low", self.speed_low, 0)
+            errors.number("env.speed_high", self.speed_high, self.speed_low)
+            if self.reward != "final":
+                raise errors.ConfigError("env.reward", self.reward, "moving_pois scores the final positions only: "
+                                         "final")
+
     hooks = Hooks(sense=sense, begin=begin, tick=tick, stepwise=final_only, score_start=no_acc, score_step=no_step,
                   score_end=score_end)                   # the paper's motion and checks
     state = (State("poi", "episode", "layout_dim", "float64"), State("t", "episode", 1, "int64"))
@@ -90,13 +100,6 @@ class MovingPois(World):
     @property
     def layout_dim(self) -> int:
         return 2 * self.n_pois
-
-    def check(self) -> None:
-        errors.number("env.drift_radius", self.drift_radius, 0, lo_open=True)
-        errors.number("env.speed_low", self.speed_low, 0)
-        errors.number("env.speed_high", self.speed_high, self.speed_low)
-        if self.reward != "final":
-            raise errors.ConfigError("env.reward", self.reward, "moving_pois scores the final positions only: final")
 
     def kernel_extra(self) -> tuple:
         return np.ascontiguousarray(self.poi_xy, np.float64), float(self.drift_radius)

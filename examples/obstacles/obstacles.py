@@ -64,7 +64,6 @@ def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
                 y[q] = discs[m, 1] + dy * (r / d)
 
 
-@dataclass(frozen=True, eq=False)
 class Obstacles(World):
     """The paper's world with circular obstacles (``obstacles``: ``[x, y, radius]`` each).
 
@@ -74,20 +73,23 @@ class Obstacles(World):
     (40, ['poi', 'rover', 'obstacle'])
     """
 
-    obstacles: tuple = ((6.5, 0.0, 1.5), (0.0, 6.5, 1.5), (-6.5, 0.0, 1.5), (0.0, -6.5, 1.5))
-    hooks = Hooks(sense=sense, move=move)                  # the paper's reward and checks
+    @dataclass(frozen=True, eq=False)
+    class Params(World.Params):
+        obstacles: tuple = ((6.5, 0.0, 1.5), (0.0, 6.5, 1.5), (-6.5, 0.0, 1.5), (0.0, -6.5, 1.5))
 
-    def check(self) -> None:
-        discs = self.obstacles
-        if not isinstance(discs, (list, tuple)):
-            raise errors.ConfigError("env.obstacles", discs, "must be a list of [x, y, radius]")
-        for m, disc in enumerate(discs):
-            if not isinstance(disc, (list, tuple)) or len(disc) != 3:
-                raise errors.ConfigError(f"env.obstacles[{m}]", disc, "must be [x, y, radius]")
-            errors.number(f"env.obstacles[{m}][0]", disc[0])
-            errors.number(f"env.obstacles[{m}][1]", disc[1])
-            errors.number(f"env.obstacles[{m}][2]", disc[2], 0, lo_open=True)
-        object.__setattr__(self, "obstacles", tuple(tuple(float(v) for v in disc) for disc in discs))
+        def check(self) -> None:
+            discs = self.obstacles
+            if not isinstance(discs, (list, tuple)):
+                raise errors.ConfigError("env.obstacles", discs, "must be a list of [x, y, radius]")
+            for m, disc in enumerate(discs):
+                if not isinstance(disc, (list, tuple)) or len(disc) != 3:
+                    raise errors.ConfigError(f"env.obstacles[{m}]", disc, "must be [x, y, radius]")
+                errors.number(f"env.obstacles[{m}][0]", disc[0])
+                errors.number(f"env.obstacles[{m}][1]", disc[1])
+                errors.number(f"env.obstacles[{m}][2]", disc[2], 0, lo_open=True)
+            object.__setattr__(self, "obstacles", tuple(tuple(float(v) for v in disc) for disc in discs))
+
+    hooks = Hooks(sense=sense, move=move)                  # the paper's reward and checks
 
     def kernel_extra(self) -> tuple:
         return (np.array(self.obstacles, dtype=self.dtype).reshape(-1, 3),)

@@ -40,7 +40,6 @@ def score_end(w, xy, acc, returns, s):
     reward_at(xy, w.layout, w.coupling, w.value, w.obs_radius, returns)
 
 
-@dataclass(frozen=True, eq=False)
 class RandomPois(World):
     """The paper's world with the POIs drawn per episode in a ring (``ring_inner`` to ``ring_outer``).
 
@@ -50,8 +49,18 @@ class RandomPois(World):
     ((3, 20), True)
     """
 
-    ring_inner: float = 8.0
-    ring_outer: float = 14.0
+    @dataclass(frozen=True, eq=False)
+    class Params(World.Params):
+        ring_inner: float = 8.0
+        ring_outer: float = 14.0
+
+        def check(self) -> None:
+            errors.number("env.ring_inner", self.ring_inner, 0)
+            errors.number("env.ring_outer", self.ring_outer, self.ring_inner)
+            if self.reward != "final":
+                raise errors.ConfigError("env.reward", self.reward, "random_pois scores the final positions only: "
+                                         "final")
+
     hooks = Hooks(sense=sense, stepwise=final_only, score_start=no_acc, score_step=no_step,
                   score_end=score_end)                   # the paper's motion and checks
     fixed_pois = False
@@ -59,12 +68,6 @@ class RandomPois(World):
     @property
     def layout_dim(self) -> int:
         return 2 * self.n_pois
-
-    def check(self) -> None:
-        errors.number("env.ring_inner", self.ring_inner, 0)
-        errors.number("env.ring_outer", self.ring_outer, self.ring_inner)
-        if self.reward != "final":
-            raise errors.ConfigError("env.reward", self.reward, "random_pois scores the final positions only: final")
 
     def draw_layout(self, rng: np.random.Generator, n: int) -> np.ndarray:
         """(n, 2P): each POI uniform by area in the ring, drawn after the rovers' starts."""

@@ -7,6 +7,7 @@ import functools
 import re
 
 from rovermarl import errors
+from rovermarl.env.trial import no_dataclass
 from rovermarl.env.world import World, world_class
 from rovermarl.policy import MLP
 from rovermarl.resources import composer
@@ -23,7 +24,7 @@ def make_world(setup: str = "solo", world: type[World] | str | None = None, **ov
     (``docs/WORLDS.md``). A key that is no field of it is refused in one line naming the key."""
     if world is not None and not isinstance(world, str) and not (isinstance(world, type) and issubclass(world, World)):
         raise errors.ConfigError("world", world, "must be a subclass of rovermarl.env.World or its dotted name")
-    cls = world_class(world, trust=True) if isinstance(world, str) else world
+    cls = world_class(world, trust=True) if isinstance(world, str) else no_dataclass(world)
     if not isinstance(setup, str) or not re.fullmatch(r"[A-Za-z0-9_\-]+", setup):   # one option name, no sweep
         raise errors.ConfigError("setup", setup, "must name a setup (letters, digits, _ and -)")
     cfg = copy.deepcopy(_composed(setup))

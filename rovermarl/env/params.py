@@ -1,11 +1,12 @@
 """A world's configuration: its parameters, the one home of their defaults, their checks, and the config they come from.
 
-:class:`Params` (the config part of :class:`~rovermarl.env.World`, its base: its fields are the World's keywords)
-holds the parameters of the paper's world as frozen dataclass fields. Their defaults are read from
-``conf/env/rovers.yaml`` (the ``env`` group's default option, shipped with the package): that file is their one home,
-so the command line, :func:`~rovermarl.env.make_world` and ``World(coupling=..., value=...)`` agree. The policy's
-configuration is its own object, :class:`~rovermarl.policy.MLP` (``policy.hidden``). :func:`keywords` reads a
-composed config into a world class's keywords (``World.from_config``).
+:class:`Params` is the configuration object a :class:`~rovermarl.env.World` holds (``world.params``): the paper's
+parameters as frozen dataclass fields, checked when built. Their defaults are read from ``conf/env/rovers.yaml`` (the
+``env`` group's default option, shipped with the package): that file is their one home, so the command line,
+:func:`~rovermarl.env.make_world` and ``World(coupling=..., value=...)`` agree. A world plug-in with parameters of its
+own declares them in a subclass, its ``World.Params``, and checks them in its ``check`` (``docs/WORLDS.md``). The
+policy's configuration is its own object, :class:`~rovermarl.policy.MLP` (``policy.hidden``). :func:`keywords` reads
+a composed config into a world class's keywords (``World.from_config``).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ def yaml_defaults(cls: type) -> type:
 class Params:
     """The paper's world's parameters (SPEC sections 1-3, 5 and 8; each documented in ``conf/env/rovers.yaml``), checked
     when built: a bad value raises :class:`~rovermarl.errors.ConfigError`, one line naming its config key. A plug-in's
-    own fields follow these and are checked by its ``check`` (``World.check``)."""
+    own fields follow these in its subclass and are checked by its :meth:`check`."""
 
     coupling: tuple[int, ...]
     value: tuple[float, ...]
@@ -86,17 +87,22 @@ class Params:
         errors.choice("env.dtype", self.dtype, DTYPES)
         object.__setattr__(self, "coupling", tuple(int(c) for c in self.coupling))   # fields, as given: normalised
         object.__setattr__(self, "value", tuple(float(v) for v in self.value))
+        self.check()
+
+    def check(self) -> None:
+        """A plug-in's checks of its own fields (raise ``errors.ConfigError``: one line naming key, value and what is
+        allowed; normalise a field with ``object.__setattr__``), after the paper's parameters' checks."""
 
 
 def keywords(cfg, cls: type) -> dict:
-    """The keywords of world class ``cls`` (a :class:`Params`) from a composed config's ``setup``, ``env`` (its
+    """The keywords of world class ``cls`` (of its ``cls.Params``) from a composed config's ``setup``, ``env`` (its
     ``_target_`` left out) and ``policy`` sections; a key of ``env`` that is no field of ``cls`` is refused in one line
     naming it. ``cfg`` may be a plain dict."""
     cfg = OmegaConf.create(cfg) if isinstance(cfg, dict) else cfg
     setup = OmegaConf.to_container(cfg.setup, resolve=True) if OmegaConf.is_config(cfg.setup) else cfg.setup
     env = dict(OmegaConf.to_container(cfg.env, resolve=True) if OmegaConf.is_config(cfg.env) else cfg.env)
     env.pop("_target_", None)
-    known = {f.name for f in fields(cls) if f.init} - {"coupling", "value", "policy", "name"}
+    known = {f.name for f in fields(cls.Params) if f.init} - {"coupling", "value", "policy", "name"}
     for key in env:
         if key not in known:
             raise errors.ConfigError(f"env.{key}", env[key], "unknown key; allowed: " + ", ".join(sorted(known)))

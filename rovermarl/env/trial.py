@@ -5,6 +5,7 @@ mistake ends in one line naming the author's file (:func:`rovermarl.errors.plugi
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import sys
 from typing import NamedTuple
@@ -12,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from rovermarl import errors
+from rovermarl.env.params import Params
 
 PER = ("rover", "episode")
 
@@ -25,6 +27,28 @@ class State(NamedTuple):
     per: str
     width: int | str = 1
     dtype: str = "float"
+
+
+_HOW = "declare them as fields of its Params, a @dataclass(frozen=True) subclass of World.Params (docs/WORLDS.md)"
+
+
+def check_params(cls: type) -> None:
+    """A World subclass's parameters are the fields of its ``Params`` dataclass: an annotation on the World, or a
+    ``Params`` that is no dataclass subclass of :class:`Params`, is one line (TypeError, when the class is made)."""
+    own = [k for k, v in vars(cls).get("__annotations__", {}).items() if "ClassVar" not in str(v)]
+    if own:
+        raise TypeError(f"{cls.__name__} declares parameters on the World ({', '.join(own)}): {_HOW}")
+    ps = cls.Params
+    if not (isinstance(ps, type) and issubclass(ps, Params)) or (
+            "__dataclass_fields__" not in vars(ps) and vars(ps).get("__annotations__")):
+        raise TypeError(f"{cls.__name__}.Params is not a dataclass subclass of World.Params: {_HOW}")
+
+
+def no_dataclass(cls: type) -> type:
+    """``cls``, refused in one line if made a dataclass: the decorator replaces World's ``__init__``."""
+    if dataclasses.is_dataclass(cls):
+        raise errors.ConfigError(cls.__name__, "@dataclass", f"a World is no dataclass: {_HOW}")
+    return cls
 
 
 def state_dims(world) -> np.ndarray:

@@ -1,25 +1,19 @@
 """The multi-rover world (SPEC sections 1-3, 5): rollouts and team evaluation, on a world made of parts.
 
-:class:`World` is a frozen dataclass. Its fields are its configuration (:class:`~rovermarl.env.params.Params`, its one
-base: the parameters, their defaults from ``conf/env/rovers.yaml`` and their checks); the rest are parts it holds,
-each built from what it is given, computed when first read and kept (``functools.cached_property``):
-
-- ``task``: :class:`~rovermarl.env.task.Task`, the POIs, their sensor types and the scoring of positions;
-- ``starts``: :class:`~rovermarl.env.starts.Starts`, the initial conditions;
-- ``kernel``: :class:`~rovermarl.env.kernel.KernelWorld`, the record the compiled rollout reads
-  (:func:`rovermarl.env.kernel.record.build`); ``compiled``: the module of the world's compiled functions.
-
-No part calls another: World passes each what it needs. World holds the calls that run the compiled rollout
-(:meth:`World.evaluate`, :meth:`World.evaluate_many`, :meth:`World.rollout`, :meth:`World.observe`) and the members
-a world plug-in may set, with the paper's values (``docs/WORLDS.md``, the one place of the contract). Building a World
-builds its kernel record and runs a plug-in's trial (:mod:`rovermarl.env.trial`): a bad plug-in fails there.
+An immutable :class:`World` holds its parts, none calling another: ``params`` (its configuration,
+:class:`~rovermarl.env.params.Params`; ``world.steps`` reads ``world.params.steps``), ``task``
+(:class:`~rovermarl.env.task.Task`: POIs and scoring), ``starts`` (:class:`~rovermarl.env.starts.Starts`), ``kernel``
+(the :class:`~rovermarl.env.kernel.KernelWorld` record the compiled rollout reads) and ``compiled`` (the module of its
+compiled functions). It holds the calls that run the rollout and the members a world plug-in may set, with the
+paper's values (``docs/WORLDS.md``, the one place of the contract). Building a World builds its kernel record and runs
+a plug-in's trial (:mod:`rovermarl.env.trial`): a bad plug-in fails there, in one line.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Collection
-from dataclasses import dataclass
+from dataclasses import fields
 from functools import cached_property
 from typing import ClassVar
 
@@ -34,7 +28,7 @@ from rovermarl.env.params import DTYPES, Params, keywords
 from rovermarl.env.prepared import Prepared, Rollout, final_in, genomes_in, score_teams, warn_insane, workers_in
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
-from rovermarl.env.trial import State, check_sense, check_state, plugin_homes, state_dims
+from rovermarl.env.trial import State, check_params, check_sense, check_state, no_dataclass, plugin_homes, state_dims
 from rovermarl.jit import name_compiled, say_if_cold
 
 _NO_FINAL = np.empty((0, 1, 2))
@@ -43,30 +37,27 @@ _NO_LAYOUT = np.empty((0, 0))
 __all__ = ["DTYPES", "Rollout", "World", "score", "world_class"]
 
 
-@dataclass(frozen=True, eq=False)
-class World(Params):
+class World:
     """One rover world. POI ``j`` sits at angle ``2*pi*j/P`` on a circle of radius ``poi_distance``.
 
     ``coupling[j]`` rovers within ``obs_radius`` of POI ``j`` at the last step earn ``value[j]`` (``reward="final"``;
     the other readings of :data:`~rovermarl.env.kernel.REWARDS` score every step, SPEC section 8).
 
-    The world options of SPEC section 8 are fields: ``reward`` (final | any_step | best_step | mean_step), ``speed``
-    (affine | clip) and ``poi_type`` (coupling | sign | value); the defaults are the SPEC reading.
+    The world options of SPEC section 8 are parameters: ``reward`` (final | any_step | best_step | mean_step),
+    ``speed`` (affine | clip) and ``poi_type`` (coupling | sign | value); the defaults are the SPEC reading.
+    ``World(**keywords)`` builds its :attr:`params` from the keywords; ``World(params)`` takes them built.
 
     >>> make_world("duo", reward="any_step", speed="clip", poi_type="sign").poi_sensor_type.tolist()[:3]
     [1.0, -1.0, -1.0]
     """
 
     # ---- what a world plug-in may set (docs/WORLDS.md): these members, with the paper's values ------------------
+    Params: ClassVar[type[Params]] = Params     # its configuration's class: a plug-in's own parameters subclass it
     hooks: ClassVar[Hooks] = ROVERS             # the compiled hooks of the world (rovermarl.env.kernel.hooks)
     state: ClassVar[tuple[State, ...]] = ()     # the per-episode state the hooks read and write (none: the paper's)
     layout_dim = 0      # K: numbers per episode that draw_layout adds to the initial conditions
     fixed_pois = True   # the POIs are poi_xy in every episode: the occupancy and C8 measures read them
                         # (the behaviour observer leaves those measures out of a world that sets False)
-
-    def check(self) -> None:
-        """Check the plug-in's own fields (raise ``errors.ConfigError``: one line naming key, value and what is
-        allowed); called after the parameters' checks, before the kernel record is built."""
 
     def kernel_extra(self) -> tuple:
         """The plug-in's own arrays and numbers for its hooks (``KernelWorld.extra``), in the kernel's precision
@@ -95,8 +86,7 @@ class World(Params):
         return self.poi_xy
 
     def poi_track(self, layout: np.ndarray | None = None) -> np.ndarray | None:
-        """(T+1, P, 2): where the POIs of an episode (``layout`` (K,)) are at each step, for a world whose POIs
-        move (the recording draws them there); None: they stay at :meth:`poi_positions` (the paper's)."""
+        """(T+1, P, 2): an episode's POIs at each step, for a world whose POIs move; None: at :meth:`poi_positions`."""
         return None
 
     def draw(self, ax, layout: np.ndarray | None = None) -> None:
@@ -106,29 +96,51 @@ class World(Params):
         """Log what the plug-in adds to the world into the Rerun recording stream ``rec`` (under ``world/``)."""
 
     def team_return(self, xy: np.ndarray) -> np.ndarray:
-        """Team return of positions xy (..., M, 2) -> (...,) (:meth:`Task.team_return
-        <rovermarl.env.task.Task.team_return>`); a world whose reward needs an episode's layout raises."""
+        """Team return of positions xy (..., M, 2) -> (...,) (``Task.team_return``); a world whose reward needs an
+        episode's layout raises."""
         return self.task.team_return(xy)
 
     @property
     def max_return(self) -> float:
-        """The best team return an episode can give (:attr:`Task.max_return <rovermarl.env.task.Task.max_return>`):
-        EXP3's reward scale and the top of the figures' score levels."""
+        """The best team return an episode can give (``Task.max_return``): EXP3's reward scale, the figures' top."""
         return self.task.max_return
 
     # ---- the parts ---------------------------------------------------------------------------------------------
-    def __post_init__(self):
-        super().__post_init__()                 # the parameters' checks
-        self.check()                            # the plug-in's own
+    def __init__(self, params: Params | None = None, /, **keywords):
+        if params is None:
+            params = self.Params(**keywords)                    # the parameters' checks, then the plug-in's own
+        elif keywords or type(params) is not self.Params:
+            raise TypeError(f"{type(self).__name__}(params) takes one {self.Params.__qualname__} and no keywords")
+        object.__setattr__(self, "params", params)
         self.kernel                             # noqa: B018 -- built now: a bad plug-in fails here, in one line
         if self.hooks != ROVERS or self.state:           # a plug-in's hooks: one line naming its file if they fail
             with errors.plugin_errors(plugin_homes(self)):
                 check_sense(self)
                 check_state(self)                       # every hook tried once, the state guarded
 
+    def __init_subclass__(cls, **kwargs):
+        super().__init_subclass__(**kwargs)
+        check_params(cls)                       # its parameters are its Params' fields, else one line
+
+    def __getattr__(self, name: str):
+        """A parameter reads as an attribute: ``world.steps`` is ``world.params.steps``."""
+        params = self.__dict__.get("params")
+        if params is not None and name in params.__dataclass_fields__:
+            return getattr(params, name)
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value) -> None:
+        raise AttributeError(f"a {type(self).__name__} is immutable: build another with other parameters")
+
+    def __repr__(self) -> str:
+        shown = ", ".join(f"{f.name}={getattr(self.params, f.name)!r}" for f in fields(self.params) if f.repr)
+        return f"{type(self).__name__}({shown})"
+
+    def __reduce__(self):
+        return type(self), (self.params,)
+
     @cached_property
     def task(self) -> Task:
-        """The POIs and the scoring of positions."""
         return Task.of(self.coupling, self.value, self.poi_distance, self.poi_type, self.obs_radius, self.reward,
                        self.n_rovers)
 
@@ -140,7 +152,7 @@ class World(Params):
     @cached_property
     def kernel(self) -> kernel.KernelWorld:
         """The world as the kernel reads it, passed whole (:func:`rovermarl.env.kernel.record.build`)."""
-        return record.build(self, self.task, self.obs_blocks(), self.layout_dim, self.kernel_extra(),
+        return record.build(self.params, self.task, self.obs_blocks(), self.layout_dim, self.kernel_extra(),
                             state_dims(self))
 
     @property
@@ -150,8 +162,7 @@ class World(Params):
 
     @property
     def poi_sensor_type(self) -> np.ndarray:
-        """(P,): the third sensor number of each POI in range (``env.poi_type``: ``c - 1``, the sign ``-1`` for
-        ``c = 1`` and ``+1`` otherwise, or the POI's value)."""
+        """(P,): the third sensor number of each POI in range (``env.poi_type``, ``Task.of``)."""
         return self.task.sensor_type.copy()
 
     @property
@@ -160,8 +171,7 @@ class World(Params):
 
     @cached_property
     def obs_dim(self) -> int:
-        """D, the sum of the ``obs_blocks``: 3 numbers per POI and 2 per rover (38 for 10 POIs and 4 rovers) in the
-        paper's world."""
+        """D, the sum of the ``obs_blocks`` (38 for the paper's 10 POIs and 4 rovers)."""
         return sum(low.size for _, low, _ in self.obs_blocks())
 
     @property
@@ -190,8 +200,8 @@ class World(Params):
 
     @cached_property
     def compiled(self):
-        """The module of the world's compiled functions (``rollout``, ``observe``, ``step``, ``returns_of``):
-        :mod:`~rovermarl.env.kernel.fused` for the rover world's hooks, else a copy compiled around ``hooks``."""
+        """The module of the world's compiled functions: :mod:`~rovermarl.env.kernel.fused` for the paper's hooks,
+        else one compiled around ``hooks`` (:mod:`~rovermarl.env.kernel.compose`)."""
         module = kernel_module(self.hooks, tuple(self.state))
         if module.__name__.startswith("rovermarl_world_"):             # the compile notice names the world
             name_compiled(module.__name__, f"{type(self).__name__}'s kernel from {type(self).__module__}")
@@ -218,10 +228,9 @@ class World(Params):
 
     # ---- sensing and reward -------------------------------------------------------------------
     def observe(self, xy: np.ndarray, heading: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
-        """Observations: xy (..., N, 2), heading (..., N) (and a plug-in's layout (..., K)) -> (..., N, obs_dim),
-        float64. The paper's world reads them with libm's rounding (``kernel.sense_libm``; the rollout's sensing reads
-        the same within a few ulp); a plug-in's through its ``sense`` hook, with its state as the episode starts
-        (hook ``begin``)."""
+        """Observations: xy (..., N, 2), heading (..., N) (a plug-in's layout (..., K)) -> (..., N, obs_dim) float64.
+        The paper's world with libm's rounding (the rollout's within a few ulp); a plug-in's through its ``sense``,
+        its state as the episode starts."""
         xy, heading, layout = self._batch(xy, heading, layout)
         out = np.empty(heading.shape + (self.obs_dim,))
         flat = xy.reshape(-1, self.n_rovers, 2), heading.reshape(-1, self.n_rovers)
@@ -237,9 +246,8 @@ class World(Params):
         return out
 
     def episode_return(self, xy: np.ndarray, layout: np.ndarray | None = None) -> np.ndarray:
-        """Episode returns under this world's reward hooks (``env.reward`` here) from trajectories xy (..., T+1, M, 2)
-        (index 0 the start, which no reading scores; ``M`` rovers as in :meth:`team_return`; a plug-in's layout
-        (..., K)) -> (...,); for the team's own trajectories the same numbers as :meth:`returns`."""
+        """Episode returns under this world's reward hooks from trajectories xy (..., T+1, M, 2) (index 0 the start,
+        unscored; a plug-in's layout (..., K)) -> (...,); the team's own trajectories give :meth:`returns`."""
         xy = np.asarray(xy, dtype=np.float64)
         if xy.ndim < 3 or xy.shape[-3] != self.steps + 1 or xy.shape[-1] != 2:
             raise ValueError(f"xy must have shape (..., {self.steps + 1}, M, 2), got {xy.shape}")
@@ -253,9 +261,8 @@ class World(Params):
     # ---- rollouts -----------------------------------------------------------------------------
     def prepare(self, ic) -> Prepared:
         """Initial conditions ``ic`` (:class:`InitialConditions`, or xy (E, N, 2), heading (E, N)) checked and in the
-        kernel's precision once, a snapshot: pass the :class:`~rovermarl.env.prepared.Prepared` wherever a method
-        takes ``ic``, and each call checks and converts only the genomes (plain ``ic`` is prepared on every call, a
-        few microseconds). No episode, or nan or inf in xy or heading, is refused in one line (ValueError)."""
+        kernel's precision once (:class:`~rovermarl.env.prepared.Prepared`: pass it wherever a method takes ``ic``).
+        No episode, or nan or inf, is refused in one line (ValueError)."""
         if type(ic) is Prepared:
             return ic if ic.world is self else self.prepare(ic.ic)
         xy0, h0, layout = (a.copy() for a in self._batch(*ic))
@@ -281,11 +288,8 @@ class World(Params):
         return traj
 
     def returns(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> np.ndarray:
-        """Per-episode team returns (E,) of a team genomes (N, P) from ic (or :meth:`prepare`'s).
-
-        If given, ``final_xy`` (E, N, 2), a writeable C-ordered float64 array, receives the rovers' final positions
-        (at no extra cost).
-        """
+        """Per-episode team returns (E,) of a team genomes (N, P) from ic (or :meth:`prepare`'s); ``final_xy``
+        (E, N, 2), a writeable C-ordered float64 array, if given, receives the rovers' final positions."""
         return self._one(genomes, ic, final_xy)[1]
 
     def evaluate(self, genomes: np.ndarray, ic, final_xy: np.ndarray | None = None) -> float:
@@ -295,12 +299,10 @@ class World(Params):
 
     def evaluate_many(self, teams: np.ndarray, ic, final_xy: np.ndarray | None = None,
                       workers: int | None = None) -> np.ndarray:
-        """Scores (B,) of B teams (B, N, P) on the same initial conditions ``ic`` (or :meth:`prepare`'s), each the
-        float :meth:`evaluate` gives, bit for bit (for an optimiser's population; a homogeneous team:
-        :meth:`homogeneous`). Several teams share each pass of the compiled rollout (their episodes side by side in
-        its lanes), and a population is split over up to ``workers`` threads (None: every CPU this process may use,
-        and never more; 1: this thread only) in chunks of at least 8 teams (``prepared.score_teams``). ``final_xy``
-        (B, E, N, 2), if given, a writeable C-ordered float64 array, receives each team's final positions."""
+        """Scores (B,) of B teams (B, N, P) on the same ``ic``, each the float :meth:`evaluate` gives, bit for bit.
+        Teams share each pass of the rollout's lanes, split over up to ``workers`` threads (None: every CPU this
+        process may use; 1: this thread) in chunks of at least 8 teams (``prepared.score_teams``). ``final_xy``
+        (B, E, N, 2), as in :meth:`returns`."""
         teams = np.asarray(teams)
         if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
             raise ValueError(f"teams must have shape (B, {self.n_rovers}, {self.n_params}), got {teams.shape}")
@@ -319,9 +321,8 @@ class World(Params):
         return np.ascontiguousarray(np.broadcast_to(genome, (self.n_rovers, self.n_params)))
 
     def kernel_args(self, ic) -> tuple:
-        """The arguments of ``compiled.rollout`` between the genomes and its outputs (for a compiled loop that
-        evaluates teams itself): xy (E, N, 2), heading (E, N) and the :class:`~rovermarl.env.kernel.KernelWorld`
-        with their layout, floats in ``env.dtype`` (the genomes' too)."""
+        """``compiled.rollout``'s arguments after the genomes, for a compiled loop: xy (E, N, 2), heading (E, N)
+        in ``env.dtype``, and the :class:`~rovermarl.env.kernel.KernelWorld` with their layout."""
         p = self._prepared(ic)
         return p.xy, p.heading, p.kernel
 
@@ -329,8 +330,7 @@ class World(Params):
         return ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
 
     def _one(self, genomes, ic, final_xy):
-        """(score, returns (E,)) of one team, the call's overhead cut to the bone (the genomes' check, one array, the
-        call; the warning only for a team not sane)."""
+        """(score, returns (E,)) of one team, with the least overhead (the genomes' check, one array, the call)."""
         p = ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
         g = genomes_in(genomes, self._team_shape, "genomes")
         final_xy = _NO_FINAL if final_xy is None else final_in(final_xy, p.xy.shape)
@@ -364,8 +364,7 @@ class World(Params):
 
 
 def score(returns: np.ndarray) -> float:
-    """Mean of per-episode returns (E,) -- the same float as ``returns.mean()``, with less overhead
-    (:func:`kernel.score <rovermarl.env.kernel.score>`)."""
+    """Mean of per-episode returns (E,): the float ``returns.mean()`` gives, with less overhead."""
     return float(kernel.score(returns))
 
 
@@ -391,4 +390,4 @@ def world_class(target: str | None, trust: bool | Collection[str] = False) -> ty
         raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: {e})") from None
     if not (isinstance(cls, type) and issubclass(cls, World)):
         raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.worlds.World")
-    return cls
+    return no_dataclass(cls)

@@ -35,10 +35,12 @@ def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
         bat[q, 1] += used  # SPENT
 
 
-@dataclass(frozen=True, eq=False)
 class Battery(World):
-    charge_low: float = 3.0
-    charge_high: float = 10.0
+    @dataclass(frozen=True, eq=False)
+    class Params(World.Params):
+        charge_low: float = 3.0
+        charge_high: float = 10.0
+
     hooks = Hooks(begin=begin, move=move)
     state = (State("battery", "rover", 2, "float"),)
 
