@@ -1,12 +1,6 @@
-"""What the rollout checks to take its cheaper paths, each giving the same bits as the general one (numba).
-
-- :func:`in_range` (each step): the rovers' and POIs' coordinates and the headings meet the promise of
-  ``atan2(ranged=True)``, so the sensing leaves out atan2's scaling, equal-magnitude and NaN cases;
-- :func:`mlp_finite` (each rollout): with :func:`in_range`, every sum of the MLP is finite, so its tanh leaves out
-  the NaN case;
-- :func:`input_rows` (each rollout): the observation rows that may be nonzero, so the MLP does not scan the rows
-  that the sensing always fills with zeros.
-
+"""What the rollout checks to take its cheaper paths (numba), each giving the same bits as the general one:
+:func:`in_range` (each step: the sensing's ranged atan2), :func:`mlp_finite` (each rollout: the MLP's tanh without
+its NaN case) and :func:`input_rows` (each rollout: the MLP skips the rows the sensing always fills with zeros).
 ``tests/test_kernel_math.py`` checks each cheaper path against the general one, bit for bit.
 """
 

@@ -1,8 +1,6 @@
-"""The paper's sensing and reward with POIs that differ per episode (numba): for world plug-ins whose POIs an
-episode's layout places (``examples/random_pois``) or its state moves (``examples/moving_pois``).
-
-``pois`` (E, 2P): episode e's POI j at ``(pois[e, 2j], pois[e, 2j + 1])``; the flat layout is the kernel's, pair
-``q = i*E + e`` (:mod:`~rovermarl.env.kernel.stages`).
+"""The paper's sensing and reward with POIs that differ per episode (numba), for world plug-ins whose POIs an
+episode's layout places (``examples/random_pois``) or its state moves (``examples/moving_pois``). ``pois`` (E, 2P):
+episode e's POI j at ``(pois[e, 2j], pois[e, 2j + 1])``; pair ``q = i*E + e`` as in the kernel's flat layout.
 """
 
 from __future__ import annotations

@@ -1,9 +1,8 @@
 """The fused team rollout (numba): the hot path of every evaluation, built from a world's hooks
 (:mod:`rovermarl.env.kernel.hooks`) and the MLP stage on the flat layout of :mod:`rovermarl.env.kernel.stages`, with
-all buffers allocated once per call; and the batch-first step functions an environment steps with.
-
-This module is compiled with the rover world's hooks. For a world plug-in, :mod:`rovermarl.env.kernel.compose`
-compiles a copy of it with the plug-in's hooks in place of the line marked ``# hooks``: one source, every world.
+all buffers allocated once per call; and the batch-first step functions an environment steps with. For a world
+plug-in, :mod:`rovermarl.env.kernel.compose` compiles a copy of this module with the plug-in's hooks in place of the
+line marked ``# hooks``: one source, every world.
 """
 
 from __future__ import annotations
@@ -32,20 +31,15 @@ from rovermarl.jit import njit
 
 @njit(**FAST)
 def rollout(genomes, xy0, heading0, w, returns, traj_xy, traj_heading, final_xy):
-    """Run E episodes of T steps for one team in the world ``w`` (a :class:`KernelWorld`); the per-episode team
-    returns go to ``returns`` (E,).
-
-    genomes (N, G) one row per rover; xy0 (E, N, 2), heading0 (E, N). genomes (B*N, G) are B teams side by side in
-    the lanes (:mod:`~rovermarl.env.kernel.lanes`), each on the same E initial conditions: then returns (B*E,) (team
-    b's from ``b*E``), and the trajectories and final positions, if recorded, (B*E, ...). The dynamics run in the
-    precision of ``genomes``, ``xy0``, ``heading0`` and ``w``'s floats (all float64, or all float32 under
-    ``env.dtype=float32``); returns and trajectories are float64.
-    If ``traj_xy`` has shape (E, T+1, N, 2) (and ``traj_heading`` (E, T+1, N)) the states are recorded there; pass
-    arrays with a zero-sized first axis to skip recording. Likewise the final positions go to ``final_xy`` (E, N, 2)
-    unless its first axis is zero-sized.
-    Each step: all rovers sense, all act, then each turns and moves (the hooks ``sense``, ``act_flat``, ``move``),
-    then ``score_step`` (where ``stepwise``); after the last step ``score_end`` gives the returns.
-    """
+    """Run E episodes of T steps of one team in the world ``w`` (a :class:`KernelWorld`): genomes (N, G) one row per
+    rover, xy0 (E, N, 2), heading0 (E, N) -> the per-episode team returns (E,) in ``returns``. genomes (B*N, G) are B
+    teams side by side in the lanes (:mod:`~rovermarl.env.kernel.lanes`) on the same E initial conditions: then the
+    returns, and the trajectories and final positions if recorded, have B*E rows (team b's from ``b*E``). The dynamics
+    run in the precision of ``genomes``, ``xy0``, ``heading0`` and ``w``'s floats (all float64, or all float32 under
+    ``env.dtype=float32``); returns and trajectories are float64. The states go to ``traj_xy`` (E, T+1, N, 2) and
+    ``traj_heading`` (E, T+1, N), the final positions to ``final_xy`` (E, N, 2), unless their first axis is
+    zero-sized. Each step: all rovers sense, all act, then each turns and moves (the hooks ``sense``, ``act_flat``,
+    ``move``), then ``score_step`` (where ``stepwise``); after the last step ``score_end`` gives the returns."""
     _rollout(genomes, xy0, heading0, returns, traj_xy, traj_heading, final_xy, w.poi_xy, w.poi_type, w.coupling,
              w.value, w.steps, w.hidden, w.obs_dim, w.sensor_range, w.obs_radius, w.v_max, w.w_max, w.speed_mode,
              w.reward_mode, w.layout, w.extra, w.rows, w.state_dims)
@@ -193,9 +187,8 @@ def returns_of(xy, w, out):
 def env_step(xy, heading, actions, w, s, acc, value, obs):
     """One step of E environments of the world ``w`` in one call, in place: move (hooks ``move``, ``tick``), score
     (``score_step`` where ``stepwise``, then ``score_end``: the running value (E,) in ``value``), observe (``sense``)
-    into obs (E, N, D).
-    xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; the state ``s`` (:func:`state_of`)
-    and ``acc`` from ``score_start(w, E)`` (:func:`env_start`), both carried from step to step of the episode."""
+    into obs (E, N, D). xy (E, N, 2), heading (E, N), actions (E, N, 2) in the kernel's precision; the state ``s``
+    (:func:`state_of`) and ``acc`` (:func:`env_start`) are carried from step to step of the episode."""
     n_ep, n = heading.shape
     ne = n * n_ep
     state = _moved(xy, heading, actions, w, s)

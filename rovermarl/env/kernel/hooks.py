@@ -1,10 +1,6 @@
-"""The paper's rover world as kernel hooks: what :mod:`~rovermarl.env.kernel.fused` calls each step (numba).
-
-A world is its hooks (``World.hooks``, a :class:`Hooks`). These are the rover world's (SPEC sections 1-3, 8), built
-on its stages and reward; a world plug-in passes its own functions with the same signatures, and
-:mod:`~rovermarl.env.kernel.compose` compiles the rollout around them. Each hook's signature, the flat layout it
-reads (pair ``q = i*E + e``; ``w`` the :class:`~rovermarl.env.kernel.record.KernelWorld`, ``s`` the declared state)
-and a worked example are in ``docs/WORLDS.md``, the one place of the plug-in contract.
+"""The paper's rover world as kernel hooks (SPEC sections 1-3, 8): what :mod:`~rovermarl.env.kernel.fused` calls
+each step (numba). A world is its hooks (``World.hooks``, a :class:`Hooks`); a plug-in passes its own with the same
+signatures (``docs/WORLDS.md``, the one place of the contract: signatures, flat layout, a worked example).
 """
 
 from __future__ import annotations

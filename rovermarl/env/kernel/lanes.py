@@ -1,9 +1,7 @@
-"""Several teams in one rollout's lanes (numba): what the batched rollout adds to the single one.
-
-The fused rollout keeps (rover, episode) pairs rover-major, ``q = i*L + l`` over L lanes. B teams on the same E
-initial conditions take L = B*E lanes, team b's episodes at ``l = b*E + e`` (genome row ``b*N + i``), so one pass
-of every stage serves B teams; B = 1 is one team, lane for lane the single rollout. Every stage works lane by lane,
-so each team's returns are the bits its own rollout gives.
+"""Several teams in one rollout's lanes (numba). The fused rollout keeps (rover, episode) pairs rover-major,
+``q = i*L + l`` over L lanes; B teams on the same E initial conditions take L = B*E lanes, team b's episodes at
+``l = b*E + e`` (genome row ``b*N + i``), so one pass of every stage serves B teams (B = 1: the single rollout, lane
+for lane). Every stage works lane by lane, so each team's returns are the bits its own rollout gives.
 """
 
 from __future__ import annotations

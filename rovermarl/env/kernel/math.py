@@ -1,15 +1,12 @@
 """Elementary functions of the kernel (numba): branchless ``atan2``, ``tanh``, ``sincos``, and ``wrap``.
 
-Each works in its argument's precision (float64, or float32 under ``env.dtype=float32``): numba types a float literal
-as float64, so the constants go through :func:`like` (and :func:`pick` where float32 needs a value of its own), which
-compile to the literal itself for float64 (the same code, bit for bit) and to a float32 constant for float32.
-:func:`tanh` and the core of :func:`atan2` are numba overloads that take a float32 formula of their own
-(:func:`_tanh32`, :func:`_atan32`: fewer operations, float32 accuracy) and the float64 one otherwise; they are compiled
-as functions that LLVM inlines (inlining them in numba's IR trips its SSA check).
-
 Branchless (selects only) so that LLVM vectorises the loops that inline them: numba 0.68 without SVML leaves calls
-to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py).
-``FAST`` are the compile options of every vectorised kernel function: FMA contraction only (no reassociation, no
+to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py) and works
+in its argument's precision: numba types a float literal as float64, so constants go through :func:`like` (or
+:func:`pick`, for a float32 value of its own), the literal itself for float64 and a float32 constant for float32.
+:func:`tanh` and :func:`atan2`'s core are overloads with a float32 formula of their own (:func:`_tanh32`,
+:func:`_atan32`), compiled as functions that LLVM inlines (inlining them in numba's IR trips its SSA check).
+``FAST``, the options of every vectorised kernel function, allows FMA contraction only (no reassociation, no
 finite-math assumptions), so results differ from plain IEEE arithmetic by rounding only.
 
 The one LLVM intrinsic, :func:`_pow2` (2^n from its bits), is worth 3.9x a call: ``python benchmarks/intrinsics.py
@@ -79,14 +76,11 @@ _AP0, _AP1, _AP2, _AP3, _AP4 = (-8.750608600031904122785e-01, -1.615753718733365
 _AQ0, _AQ1, _AQ2, _AQ3, _AQ4 = (2.485846490142306297962e+01, 1.650270098316988542046e+02,
                                 4.328810604912902668951e+02, 4.853903996359136964868e+02,
                                 1.945506571482613964425e+02)
-_BIG = 2.0 ** 800
-_TINY = 2.0 ** -800
+_BIG, _TINY = 2.0 ** 800, 2.0 ** -800
 _BIG32, _TINY32 = 2.0 ** 60, 2.0 ** -60  # float32's: its range ends at 2^128
 RANGED_MIN, RANGED_MAX = _TINY, _BIG     # atan2(ranged=True)'s promise on max(|x|, |y|) (float32: _TINY32, _BIG32)
 _PIO4_HI32 = 0.7853981852531433          # fl32(pi/4) and pi/4 - fl32(pi/4)
 _PIO4_LO32 = -2.1855695031547384e-08
-
-
 _TAN_PI8 = 0.41421356237309503            # float32's reduction bound
 _AF0, _AF1, _AF2, _AF3 = 8.05374449538e-2, -1.38776856032e-1, 1.99777106478e-1, -3.33329491539e-1   # Cephes atanf
 

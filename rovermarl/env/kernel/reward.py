@@ -1,10 +1,7 @@
-"""The reward (SPEC section 1) and its per-step readings (SPEC section 8), numba, on batched arrays.
-
-:func:`observers` counts the rovers within ``obs_radius`` of each POI (:func:`~rovermarl.env.kernel.rules.within`,
-the one radius test), :func:`payout` is the one reward rule, :func:`reward` scores positions after the last step
-(``env.reward=final``); :func:`fold` and :func:`settle` score every step for the other readings.
-
-Shapes: E episodes, N rovers, P POIs.
+"""The reward (SPEC section 1) and its per-step readings (SPEC section 8), numba, on batched arrays (E episodes,
+N rovers, P POIs): :func:`observers` counts the rovers within ``obs_radius`` of each POI, :func:`payout` is the one
+reward rule, :func:`reward` scores the positions after the last step (``env.reward=final``); :func:`fold` and
+:func:`settle` score every step for the other readings.
 """
 
 from __future__ import annotations
@@ -112,9 +109,9 @@ def max_return(mode: int, coupling, value, n_rovers: int, overlap: bool = False)
 def fold(mode, xy, poi_xy, coupling, value, radius, count, step, peak, acc):
     """Fold the positions after one step into a per-step reading of ``env.reward`` (SPEC section 8; ``mode`` is its
     index in :data:`~rovermarl.env.kernel.rules.REWARDS`, not 0). xy (E, N, 2); count (E, P) int and step (E,) are
-    scratch. ``any_step`` keeps each POI's most observers at one step in peak (E, P) (start at 0); ``best_step``
-    keeps the best step return in acc (E,) (start at -inf); ``mean_step`` sums the step returns in acc (start at 0).
-    :func:`settle` turns them into the returns.
+    scratch. ``any_step`` keeps each POI's most observers at one step in peak (E, P); ``best_step`` keeps the best
+    step return in acc (E,); ``mean_step`` sums the step returns in acc (:func:`start` makes them, :func:`settle`
+    turns them into the returns).
 
     >>> import numpy as np
     >>> poi, c, v = np.array([[13.0, 0.0]]), np.array([2]), np.array([3.0])
@@ -173,13 +170,7 @@ def _block_sum(a, lo, n):
 def pairwise_sum(a):
     """``a.sum()`` of a (E,) with numpy's summation order, so it is the same float: blocks of up to 128 terms
     (:func:`_block_sum`), larger ranges split in halves (multiples of 8) and their sums added (numpy recurses; an
-    explicit stack here, as numba's cache cannot hold a recursive function).
-
-    >>> import numpy as np
-    >>> a = np.random.default_rng(0).standard_normal(300)
-    >>> pairwise_sum(a) == a.sum()
-    True
-    """
+    explicit stack here, as numba's cache cannot hold a recursive function)."""
     lo, size, stage = np.zeros(64, np.int64), np.zeros(64, np.int64), np.zeros(64, np.int64)
     values = np.empty(64)
     top, nv = 0, 0
@@ -205,12 +196,7 @@ def pairwise_sum(a):
 
 @njit(cache=True)
 def score(returns):
-    """The team score F (SPEC section 5): the mean of per-episode returns (E,), as ``returns.sum() / E`` in numpy.
-
-    >>> import numpy as np
-    >>> score(np.array([3.0, 4.0, 2.0]))
-    3.0
-    """
+    """The team score F (SPEC section 5): the mean of per-episode returns (E,), as ``returns.sum() / E`` in numpy."""
     return pairwise_sum(returns) / returns.shape[0]
 
 

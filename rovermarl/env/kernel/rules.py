@@ -1,12 +1,7 @@
-"""The world's rules, one home each, for one rover / one target (numba; SPEC sections 1-3).
-
-- :func:`within`: a rover observes a POI when its distance is ``<= radius`` (reward, occupancy, events);
-- :func:`poi_of`: the POI a rover observes (lowest index), or -1;
-- :func:`reading`: the sensor encoding of one target, ``[d / range, bearing / pi, type]``, ``[1, 0, 0]`` beyond range;
-- :func:`bearing`: a target's direction in the rover's frame, in [-pi, pi);
-- :func:`turn`, :func:`speed`: the action mapping (turn ``a1 * w_max``; speed ``(a0 + 1) / 2 * v_max``, or
-  ``max(a0, 0) * v_max`` under ``env.speed=clip``);
-- the codes of the world options of SPEC section 8 (:data:`REWARDS`, :data:`SPEEDS`, :data:`POI_TYPES`).
+"""The world's rules, one home each, for one rover / one target (numba; SPEC sections 1-3): :func:`within` (the
+radius test of reward, occupancy and events), :func:`poi_of`, :func:`reading` (the sensor encoding), :func:`bearing`,
+:func:`turn` and :func:`speed` (the action mapping), and the codes of SPEC section 8's world options
+(:data:`REWARDS`, :data:`SPEEDS`, :data:`POI_TYPES`).
 
 Where each world option acts: ``env.speed`` in :func:`speed`; ``env.poi_type`` in the type array that the World
 passes to the sensors (``World.poi_type``); ``env.reward`` in :func:`~rovermarl.env.kernel.reward.fold` (each step)
@@ -69,13 +64,10 @@ def reading(d, sensor_range, dn, bn, typ):
 
 @njit(inline="always", **FAST)
 def bearing(dx, dy, c, s, ranged=False):
-    """Bearing in [-pi, pi) of world offset (dx, dy) seen by a rover with heading h, c = cos h, s = sin h.
-
-    ``atan2`` of the offset rotated into the rover frame equals ``wrap(atan2(dy, dx) - h)`` up to
-    rounding. A zero offset reads as the world x axis (``atan2(0, 0) = 0``), as in the SPEC formula.
-    ``ranged``: passed on to :func:`~rovermarl.env.kernel.math.atan2` (the caller has checked its promise, as
-    ``stages.sense_flat`` does with ``checks.in_range``).
-    """
+    """Bearing in [-pi, pi) of world offset (dx, dy) seen by a rover with heading h, c = cos h, s = sin h: ``atan2``
+    of the offset rotated into the rover frame, ``wrap(atan2(dy, dx) - h)`` up to rounding. A zero offset reads as the
+    world x axis (``atan2(0, 0) = 0``), as in the SPEC formula. ``ranged``: for :func:`~rovermarl.env.kernel.math.atan2`
+    (the caller has checked its promise, as ``stages.sense_flat`` does with ``checks.in_range``)."""
     zero = (dx == like(dx, 0.0)) & (dy == like(dx, 0.0))
     xr = dx * c + dy * s
     yr = dy * c - dx * s

@@ -1,16 +1,13 @@
 """Register-tiled multiply-add loops for the MLP's two layers, written in LLVM IR (numba intrinsics).
 
-numba's loop vectoriser only vectorises innermost loops, so a hidden unit's sum over the input rows, a chain of
-dependent multiply-adds, goes through memory once per pass over the episodes. :func:`hidden_tile` keeps a tile of
-``UNITS`` hidden units x ``EPISODES`` episodes in vector registers for the whole sum instead: its sums start from
-the units' biases, broadcast into registers, and per input row take one vector load of the row's episodes, one
-broadcast weight per unit and ``UNITS`` fused multiply-adds.
-
-Each (unit, episode) still adds its rows in index order, each as one fused multiply-add ``fma(x, w, h)``, which is
-what the FMA contraction of ``h + x * w`` (the kernel's ``FAST`` options) computes: the result is bit-identical to the
-plain loops (``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of episodes (:func:`lanes`: 8 float64 or
-16 float32); LLVM splits them into the target's registers (one 512-bit register or two 256-bit ones per unit).
-:func:`output_tile` does the same for the output layer's 2 units, whose inputs are the hidden units.
+numba vectorises innermost loops only, so a hidden unit's sum over the input rows (a chain of dependent multiply-adds)
+goes through memory once per pass over the episodes. :func:`hidden_tile` keeps a tile of ``UNITS`` hidden units x
+``EPISODES`` episodes in vector registers for the whole sum: from the units' biases, per input row one vector load of
+the row's episodes, one broadcast weight per unit and ``UNITS`` fused multiply-adds; :func:`output_tile` does the
+same for the output layer's 2 units. Each (unit, episode) still adds its rows in index order, each as one
+``fma(x, w, h)``, which is what the ``FAST`` contraction of ``h + x * w`` computes: bit-identical to the plain loops
+(``tests/test_kernel_math.py``). A tile's vectors hold 64 bytes of episodes (:func:`lanes`), which LLVM splits into
+the target's registers (one 512-bit or two 256-bit ones per unit).
 
 Worth 1.86x a call: ``python benchmarks/intrinsics.py --pairs 3`` (``plain_tiles``: ``stages._mlp``'s plain loops
 for every tile), float64 duo ``World.evaluate`` 85.8-90.0 against 46.8-48.5 us, alternated processes on one pinned
@@ -135,9 +132,8 @@ def hidden_tile(hid, obs, genome, rows, nr, q0, ne, hidden, u0, ep, e0, g0, b0):
     ``hid[u*ep + e] = g[b0 + u] + obs[k*ne + q0 + e] * g[g0 + k*hidden + u] + ...`` over the rows ``k`` of
     ``rows[:nr]`` in order, where g is the genome array read as flat memory (``g0``, ``b0``: a rover's row and its
     biases in it). hid (H*E,), obs (D*N*E,) feature-major, genome (G,) or (N, G) of one float dtype, rows (D,)
-    int64; the tile must lie inside the arrays (the caller checks ``u0 + UNITS <= hidden`` and
-    ``e0 + lanes <= ep``), and every array must be contiguous (the caller checks the genome's strides; the others
-    are its own buffers)."""
+    int64; the caller keeps the tile inside the arrays (``u0 + UNITS <= hidden``, ``e0 + lanes <= ep``) and every
+    array contiguous (it checks the genome's strides; the others are its own buffers)."""
     _hidden(hid, obs, genome, rows, nr, q0, ne, hidden, g0 + u0, u0, ep, e0, b0 + u0)
 
 

@@ -1,17 +1,14 @@
-"""The world in stages (numba): sense, act and move on batched arrays (SPEC sections 2-4); the reward stage is
-:mod:`rovermarl.env.kernel.reward`.
+"""The world in stages (numba): sense, act and move (SPEC sections 2-4; the reward stage is
+:mod:`~rovermarl.env.kernel.reward`). E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units,
+G genome length.
 
-Shapes: E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units, G genome length.
-
-The public stages take batch-first arrays (``xy (E, N, 2)``, ``heading (E, N)``, ``obs (E, N, D)``, ``actions
-(E, N, 2)``). Each adapts the layout and runs the same compiled loop (``*_flat``) as the fused
-:func:`rovermarl.env.kernel.fused.rollout`, so a step-by-step pipeline ``sense -> act -> move`` and then ``reward``
-gives the rollout's numbers bit for bit. The flat layout keeps the (rover, episode) pairs ``q = i*E + e`` rover-major
-in (N*E,) arrays, and observations feature-major in (D*N*E,) (feature k of pair q at ``k*N*E + q``), so that the
-loops over episodes are contiguous and LLVM vectorises them. Indices there are unsigned (``U``): numba then emits
-no negative-index wraparound, which blocks vectorisation. The small flat functions are inlined (``inline="always"``:
-no per-call array reference counting in the step loop); inlined code takes its caller's compile options, so every
-caller of ``act_flat``/``move_flat`` is ``FAST``. A function that stays a call of its own (``_mlp``,
+The public stages take batch-first arrays and run the same compiled loops (``*_flat``) as the fused
+:func:`~rovermarl.env.kernel.fused.rollout`, so ``sense -> act -> move`` then ``reward`` gives the rollout's numbers
+bit for bit. The flat layout (docs/WORLDS.md) keeps the pairs ``q = i*E + e`` rover-major in (N*E,) arrays and the
+observations feature-major in (D*N*E,), so that the loops over episodes are contiguous and LLVM vectorises them;
+indices there are unsigned (``U``): numba's negative-index wraparound blocks vectorisation. The small flat functions
+are inlined (no per-call array reference counting in the step loop) and take their caller's compile options, so
+every caller of ``act_flat``/``move_flat`` is ``FAST``. A function that stays a call of its own (``_mlp``,
 ``_sense_rows``) has one way out (no break, no early return) and calls no other with its arrays: else numba keeps
 two atomic reference counts per array argument per call (on this Intel CPU, 13% of the rollout's time before).
 """
@@ -187,12 +184,11 @@ def pose_back(state, xy, heading):
 
 @njit(inline="always", **FAST)
 def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
-    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major.
-
-    Where :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the
-    ranged ``atan2`` (the same bits with fewer operations), else the general one. Returns whether it held.
-    Inlined: as a call of its own it counted references to its 7 arrays around its call of :func:`_sense_rows`, 16
-    atomic instructions a step (gdb on NRT_incref/NRT_decref)."""
+    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major. Where
+    :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the ranged
+    ``atan2`` (the same bits with fewer operations), else the general one; returns whether it held. Inlined: as a
+    call of its own it counted references to its 7 arrays around its call of :func:`_sense_rows`, 16 atomic
+    instructions a step (gdb on NRT_incref/NRT_decref)."""
     if in_range(x, y, sin_h, cos_h, poi_xy):
         _sense_rows(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs, True)
         return True
@@ -305,17 +301,12 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 @njit(**FAST)
 def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
-    """MLP of genome row i over its E episodes.
-
-    genomes (N, G), obs (D*N*E,) feature-major (rover i's ``ep`` = E episodes at ``q0 = i*E`` .. ``q0+E-1``; B teams
-    side by side, genomes (B*N, G): row i is team ``i // N``'s rover ``i % N``, its episodes from ``_lane0``),
-    cand (N, D): each rover's input rows that may be nonzero, increasing, then -1 (``checks.input_rows``);
-    hid ((H+2)*E,): the hidden units, then -> the two outputs' sums (before their tanh) in its last 2E entries
-    (:func:`act_flat` takes them from there and applies the tanh); rows (D,) int scratch, ``finite`` as in
-    :func:`act_flat`. Inputs are summed in index order. Every array is read in place, never through a view (a
+    """MLP of genome row i (team ``i // N``'s rover ``i % N``) over its ``ep`` episodes from lane ``_lane0``, inputs
+    summed in index order: genomes, cand and ``finite`` as in :func:`act_flat`, obs (D*N*E,) feature-major; hid
+    ((H+2)*ep,): the hidden units, then the two outputs' sums before their tanh in its last 2 ep entries
+    (:func:`act_flat` applies it); rows (D,) int scratch. Every array is read in place, never through a view (a
     rover's row, a slice), and the call takes few arrays: each view, and each array argument of a call, costs two
-    atomic reference counts (without the views the rollout ran 1.02x, without a0 and a1 here 1.01-1.04x).
-    """
+    atomic reference counts (without the views the rollout ran 1.02x, without a0 and a1 here 1.01-1.04x)."""
     g = genomes.shape[1]
     ne = ep * genomes.shape[0]
     q0 = _lane0(i, cand.shape[0], genomes.shape[0], ep)
@@ -327,8 +318,7 @@ def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
     p0 = hidden * ep                                  # the output layer's sums: hid[p0 + j*ep + e]
     # Rows of obs that are zero in all E episodes add nothing: skip them. Exact for finite weights (h + 0 * w == h,
     # up to the sign of a zero h). cand leaves out those that always are (own rover slot, POI types of 0).
-    # (No break or early return in this function: either keeps numba from pruning the reference counts of its
-    # array arguments, two atomic instructions each per call.)
+    # (No break or early return in this function: see the module docstring.)
     nr, zero = 0, like(genomes[0, 0], 0.0)
     for c in range(d):
         k = cand[U(rover), U(c)]

@@ -1,18 +1,16 @@
 """512-bit vectors where the CPU has them: the numba target features the kernel compiles with, chosen at import.
 
-LLVM tunes many AVX-512 CPUs (Intel's Skylake-SP to Sapphire Rapids) with ``prefer-256-bit``: its vectoriser then
-uses 256-bit registers although the CPU has 512-bit ones (AMD's Zen 4 is tuned for 512 already). :func:`configure`
-runs when this module is imported, which :mod:`rovermarl.env.kernel` does first, before numba compiles anything of
-rovermarl; on a CPU with AVX-512 it sets numba's target features to the host's plus ``-prefer-256-bit``. On other
-CPUs it does nothing, so it is safe everywhere. Results stay bit-identical: the vector width changes how many
-episodes one instruction holds, not what any episode computes (no reduction is reordered;
-``tests/test_kernel_target.py`` compares the bits).
+LLVM tunes many AVX-512 CPUs (Intel's Skylake-SP to Sapphire Rapids) with ``prefer-256-bit``, so its vectoriser uses
+256-bit registers on 512-bit hardware (AMD's Zen 4 is tuned for 512 already). :func:`configure` runs on import, which
+:mod:`rovermarl.env.kernel` does first, before numba compiles anything of rovermarl: on a CPU with AVX-512 it sets
+numba's target features to the host's plus ``-prefer-256-bit``, elsewhere it does nothing. Results stay bit-identical:
+the vector width changes how many episodes one instruction holds, never what an episode computes (no reduction is
+reordered; ``tests/test_kernel_target.py``).
 
-``ROVERMARL_VECTORS`` chooses: ``auto`` (default: as above, unless ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES`` is
-set, which then rule), ``512`` (also with ``NUMBA_CPU_NAME``, e.g. to build for an Intel target elsewhere) or
-``off`` (numba's own choice); another value is warned about in one line and read as ``auto``. numba's cache keys on
-the features, so each choice compiles once. If numba compiled something before rovermarl was imported, its target
-is already built and this changes nothing but the cache key.
+``ROVERMARL_VECTORS``: ``auto`` (default; ``NUMBA_CPU_NAME`` or ``NUMBA_CPU_FEATURES``, when set, rule), ``512`` (also
+with ``NUMBA_CPU_NAME``, e.g. to build for an Intel target elsewhere) or ``off`` (numba's own choice); another value
+is warned about in one line and read as ``auto``. numba's cache keys on the features, so each choice compiles once; if
+numba compiled something before rovermarl was imported, this changes nothing but the cache key.
 """
 
 from __future__ import annotations
@@ -37,9 +35,7 @@ def features(host: str, choice: str = "auto", cpu_name: str | None = None, cpu_f
     """
     if choice not in CHOICES:
         raise ValueError(f"ROVERMARL_VECTORS={choice!r}: must be one of {', '.join(CHOICES)}")
-    if choice == "off" or cpu_features or (choice == "auto" and cpu_name):
-        return None
-    if "+avx512f" not in host.split(","):
+    if choice == "off" or cpu_features or (choice == "auto" and cpu_name) or "+avx512f" not in host.split(","):
         return None
     return f"{host},-prefer-256-bit"
 
@@ -62,9 +58,8 @@ def configure() -> str | None:
 
 def debug_build_warning() -> str | None:
     """The warning given at import when numba builds with debug info (``NUMBA_DEBUGINFO=1``, or
-    ``NUMBA_ENABLE_PROFILING=1`` without ``NUMBA_DEBUGINFO=0``), else None. Such a build does not inline the kernel's
-    ``tanh`` and ``atan2`` nor vectorise its loops (the float64 kernel measured about 5x slower here); it is cached
-    apart from the plain build (:mod:`rovermarl.jit`), so later plain runs do not load it."""
+    ``NUMBA_ENABLE_PROFILING=1`` without ``NUMBA_DEBUGINFO=0``), else None: such a build neither inlines the kernel's
+    ``tanh`` and ``atan2`` nor vectorises its loops (about 5x slower here), cached apart (:mod:`rovermarl.jit`)."""
     from numba.core import config
 
     if not config.DEBUGINFO_DEFAULT:
