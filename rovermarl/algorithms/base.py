@@ -1,24 +1,14 @@
-"""The algorithm plug-in contract.
+"""The algorithm plug-in contract (docs/ARCHITECTURE.md, "Plug-in points").
 
-An algorithm is one class plus one yaml in ``conf/algorithm/``. Hydra builds it from its config node with the
-world as a keyword (``instantiate(cfg.algorithm, world=world)``). It holds no run state: a run's state is a
-declared type, a dataclass subclass of :class:`RunState` named by :attr:`Algorithm.state_type` (its fields: arrays,
-numbers, strings, None, plain dicts of those such as RNG states), that :meth:`Algorithm.init` creates and
-:meth:`Algorithm.advance` threads through, so the runner can checkpoint it, ship it to another process and resume
-bit-identically. Randomness comes only from the run's named streams (:class:`~rovermarl.env.streams.RunStreams`) the
-runner hands to :meth:`Algorithm.init`.
-
-What an algorithm may ask of the evaluation of its teams is :class:`Evaluator` (scores, scores with final
-positions, fresh initial conditions, trajectories, the compiled rollout's inputs), and what it tells the behaviour
-observer is :class:`Observer`; the runner passes one of each.
-
-The public methods check and normalise; subclasses implement the private ``_init``, ``_advance`` and ``_team``
-(evosax's ``ask``/``tell`` over ``_ask``/``_tell``).
-
-Per-generation arrays are declared, not hand-listed elsewhere: :attr:`Algorithm.series` names each one (dtype,
-per-generation shape, the value of generations not computed). Checkpoints, ``curve.npz``, the Rerun recording and
-the figures follow the declaration. The team score after each generation, ``score`` (G+1,), belongs to every run
-and is kept by the runner.
+An algorithm is one class plus one yaml in ``conf/algorithm/``, built as ``instantiate(cfg.algorithm, world=world)``.
+It holds no run state: :meth:`Algorithm.init` creates the run's state, a dataclass subclass of :class:`RunState`
+named by :attr:`Algorithm.state_type` (fields: arrays, numbers, strings, None, plain dicts of those such as RNG
+states), and :meth:`Algorithm.advance` threads it through, so the runner can checkpoint it, ship it to another
+process and resume bit-identically. Randomness comes only from the run's named streams (:class:`RunStreams`).
+It asks the evaluation only what :class:`Evaluator` declares and tells the behaviour observer what
+:class:`Observer` declares. The public methods check and normalise; subclasses implement ``_init``, ``_advance``
+and ``_team``. Per-generation arrays are declared in :attr:`Algorithm.series` (checkpoints, ``curve.npz``, the
+Rerun recording and the figures follow it); ``score`` (G+1,) belongs to every run and is kept by the runner.
 
 Example (a run of 3 generations, in the runner's words)::
 
@@ -32,6 +22,7 @@ Example (a run of 3 generations, in the runner's words)::
 
 from __future__ import annotations
 
+import sys
 from abc import ABC, abstractmethod
 from dataclasses import MISSING, dataclass, fields
 from typing import ClassVar, NamedTuple, Protocol
@@ -62,12 +53,9 @@ class KernelInputs(NamedTuple):
 
 class Evaluator(ABC):
     """What an algorithm may ask of the evaluation of its teams (genomes (N, P)), on the run's initial conditions.
-
     ``fresh`` is true under ``evaluation.fresh_ic``: an algorithm with ``fresh_ic = True`` calls :meth:`draw` once
-    per generation and scores every team it compares there. ``calls`` counts the team evaluations made
-    (:meth:`score`, :meth:`measure` and :meth:`rollout` each add one, :meth:`measure_many` one per team; a compiled
-    loop adds its own).
-    """
+    per generation and scores every team it compares there. ``calls`` counts the team evaluations made (one per
+    team scored, measured or rolled out; a compiled loop adds its own)."""
 
     fresh: bool = False
     calls: int = 0
@@ -101,12 +89,9 @@ class Evaluator(ABC):
 
 @dataclass(frozen=True)
 class Series:
-    """One per-generation array of a run: ``name`` -> (G, *shape) of ``dtype``.
-
-    ``fill`` marks generations not computed. ``columns`` names the entries of a vector series (e.g. one per bandit
-    arm); ``entity`` is where the Rerun recording logs it (default ``metrics/<name>``, a vector's entries under
-    ``<entity>/<column>``).
-    """
+    """One per-generation array of a run: ``name`` -> (G, *shape) of ``dtype``; ``fill`` marks generations not
+    computed, ``columns`` names a vector's entries (e.g. one per bandit arm), logged under ``<entity>/<column>``
+    (``entity``: where the Rerun recording logs it, default ``metrics/<name>``)."""
 
     name: str
     dtype: str
@@ -117,7 +102,6 @@ class Series:
     entity: str = ""
 
     def empty(self, generations: int) -> np.ndarray:
-        """(generations, *shape) filled with :attr:`fill`."""
         return np.full((generations, *self.shape), self.fill, dtype=self.dtype)
 
     @property
@@ -127,9 +111,9 @@ class Series:
 
 
 class Observer(Protocol):
-    """What an algorithm tells the behaviour observer (see :mod:`rovermarl.record.events`) inside its loop. Final
-    positions ``final_xy`` (E, N, 2) are what :meth:`Evaluator.measure` returned for that team (None when the
-    evaluation keeps none; an observer that measures positions refuses None in one line)."""
+    """What an algorithm tells the behaviour observer (:mod:`rovermarl.record.events`) inside its loop; ``final_xy``
+    (E, N, 2) is what :meth:`Evaluator.measure` returned for that team (None: none kept; an observer that measures
+    positions refuses None in one line)."""
 
     def evaluated(self, mutated: np.ndarray, final_xy: np.ndarray | None) -> int:
         """A team that changed the rovers ``mutated`` (N,) bool of the parent team was evaluated, its rovers ending
@@ -153,7 +137,6 @@ class NullObserver:
         return -1
 
     def switch_inputs(self) -> None:
-        """Nothing to compare."""
         return None
 
     def accepted(self, generation: int, genomes: np.ndarray, score: float, score_changed: bool,
@@ -164,7 +147,6 @@ class NullObserver:
 # Names a run's arrays already use (curve.npz, the runner's record, the observer's files): no series may take them.
 RESERVED = frozenset({"score", "seed", "genomes", "ic_xy", "ic_heading", "ic_layout", "heldout_score", "initial_score"})
 RESERVED_PREFIXES = ("behaviour_", "occupancy_")
-
 
 LOOPS = ("auto", "python", "compiled")   # algorithm.loop: which generation loop runs (an algorithm with one)
 
@@ -187,10 +169,11 @@ class RunState:
         names = {f.name for f in fields(cls)}
         needed = {f.name for f in fields(cls) if f.default is MISSING and f.default_factory is MISSING}
         extra, missing = sorted(set(d) - names), sorted(needed - set(d))
-        if extra or missing:
+        wrong = [w for w in (extra and f"has no field {', '.join(extra)}", missing and f"lacks {', '.join(missing)}")
+                 if w]
+        if wrong:
             raise ValueError(f"a {cls.__qualname__} has fields {', '.join(sorted(names))}; this state "
-                             + "; ".join(w for w in (extra and f"has no field {', '.join(extra)}" or "",
-                                                     missing and f"lacks {', '.join(missing)}" or "") if w))
+                             + "; ".join(wrong))
         return cls(**d)
 
 
@@ -201,12 +184,11 @@ class AlgorithmError(Exception):
 class Algorithm:
     """Base class of a learner over a team of N rovers, each with a genome of P parameters.
 
-    Subclasses set :attr:`series` (in ``__init__`` if it depends on the config) and implement ``_init``,
-    ``_advance`` and ``_team``. One that honours ``evaluation.fresh_ic`` (:attr:`Evaluator.fresh`: call
-    :meth:`Evaluator.draw` each generation, re-score the parents there) sets :attr:`fresh_ic`; the runner refuses
-    ``evaluation.fresh_ic=true`` for the others. :attr:`kernel_calls` names the world kernel's other functions it
-    calls (``evaluate_many``; ``observe`` and ``env_step`` through :class:`~rovermarl.vector.VectorEnv`), so that a
-    launch compiles them ahead when numba's cache lacks them (:mod:`rovermarl.runner.compile`).
+    Subclasses set :attr:`series` (in ``__init__`` if it depends on the config). One that honours
+    ``evaluation.fresh_ic`` (calls :meth:`Evaluator.draw` each generation, re-scores the parents there) sets
+    :attr:`fresh_ic`; the runner refuses ``evaluation.fresh_ic=true`` for the others. :attr:`kernel_calls` names the
+    world kernel's other functions it calls (``evaluate_many``; ``observe`` and ``env_step`` through
+    :class:`~rovermarl.vector.VectorEnv`), so that a launch compiles them ahead (:mod:`rovermarl.runner.compile`).
     """
 
     state_type: ClassVar[type[RunState]] = RunState   # the run state's declared type (a subclass names its own)
@@ -218,7 +200,6 @@ class Algorithm:
     def __init__(self, world):
         self.world = world
 
-    # ---- public API ------------------------------------------------------------------------------------------
     def init(self, streams: RunStreams, evaluate: Evaluator) -> tuple[RunState, Measured]:
         """A fresh run's state and its initial team's score with its final positions (``_init`` may return the
         :class:`Measured` ``evaluate`` gave, or a float: then no positions). ``streams`` are the run's named random
@@ -228,11 +209,8 @@ class Algorithm:
 
     def advance(self, state: RunState, generation: int, n: int, evaluate: Evaluator,
                 observer: Observer) -> tuple[RunState, dict[str, np.ndarray]]:
-        """Advance ``state`` (at ``generation``) by ``n`` generations.
-
-        Returns the new state and the arrays of those generations: ``score`` (n,) after each one, and every
-        declared :attr:`series` (n, *shape).
-        """
+        """Advance ``state`` (at ``generation``) by ``n`` generations: the new state and the arrays of those
+        generations, ``score`` (n,) after each one and every declared :attr:`series` (n, *shape)."""
         state, arrays = self._advance(self._declared(state, "advance's argument"), generation, n, evaluate,
                                       observer)
         self._declared(state, "_advance")
@@ -271,7 +249,6 @@ class Algorithm:
         :class:`~rovermarl.errors.ConfigError` (one line naming this class's file) for a name the kernel lacks."""
         for name in self.kernel_calls:
             if not callable(getattr(kernel, name, None)):
-                import sys
                 home = getattr(sys.modules.get(type(self).__module__), "__file__", type(self).__module__)
                 raise errors.ConfigError("algorithm.kernel_calls", name, f"{type(self).__name__} ({home}) names no "
                                          f"function of the world kernel {kernel.__name__}")
@@ -295,12 +272,10 @@ class Algorithm:
         return int(round(self.evaluations_per_generation(fresh_ic) * w.episodes * w.steps * w.n_rovers))
 
     def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        """Agent-steps one generation takes outside the team evaluations it asks of the :class:`Evaluator` (which
-        count in ``calls``): 0 for a learner that learns from team evaluations; a learner that steps the environment
-        itself (PPO) returns its training steps. A study's ``compute.json`` adds them to the evaluations'."""
+        """Agent-steps one generation takes outside the team evaluations it asks of the :class:`Evaluator`: 0, or a
+        learner's own training steps (PPO's). A study's ``compute.json`` adds them to the evaluations'."""
         return 0
 
-    # ---- to implement ----------------------------------------------------------------------------------------
     def _init(self, streams: RunStreams, evaluate: Evaluator):
         raise NotImplementedError
 
@@ -316,9 +291,8 @@ BIT_GENERATORS = {c.__name__: c for c in (np.random.PCG64, np.random.PCG64DXSM, 
 
 
 def generator(state: dict) -> np.random.Generator:
-    """A generator continuing from a bit-generator ``state`` (of one of numpy's :data:`BIT_GENERATORS`): how a
-    run's RNG streams live in its state. The name in ``state`` only picks from those classes: a name
-    from a file is never looked up as a function."""
+    """A generator continuing from a bit-generator ``state`` (how a run's RNG streams live in its state). The name
+    in ``state`` only picks from :data:`BIT_GENERATORS`: a name from a file is never looked up as a function."""
     name = state.get("bit_generator") if isinstance(state, dict) else None
     if not isinstance(name, str) or name not in BIT_GENERATORS:
         raise ValueError(f"bit generator {str(name)[:40]!r} is not one of numpy's ({', '.join(BIT_GENERATORS)})")

@@ -1,16 +1,11 @@
 """CC-(1+1)-ES (SPEC section 6): each rover owns a (1+1)-ES; each generation mutates k of them together and keeps
-all k children or none, on the team's shared score.
+all k children or none, on the team's shared score. Its operators are config groups of their own: ``k`` (fixed or a
+k-selector such as EXP3), ``team``, ``mutation`` and ``selection``. Run state: :class:`CC11ESState`.
 
-Its operators are config groups of their own: ``k`` (fixed or a k-selector such as EXP3), ``team``
-(heterogeneous or homogeneous), ``mutation`` and ``selection`` (soft or strict).
-
-Run state: :class:`CC11ESState`.
-
-The generation loop is :func:`rovermarl.algorithms.generation.generations` (steps 1-7), its one source, run over
-operations: ``loop`` (``algorithm.loop``) chooses ``python`` (:data:`PYTHON`, below: any operator, the loop run as
-Python), ``compiled`` (:data:`rovermarl.algorithms.compiled.COMPILED`: the loop compiled around the packaged
-operators' numba functions, bit-identical; refused in one line where it does not apply) or ``auto`` (the default:
-compiled wherever it applies).
+The generation loop is :func:`rovermarl.algorithms.generation.generations`, its one source, run over :data:`PYTHON`
+(any operator, as Python) or :data:`rovermarl.algorithms.compiled.COMPILED` (the packaged operators, compiled,
+bit-identical): ``algorithm.loop`` chooses (``auto``, the default: compiled wherever it applies; ``compiled`` is
+refused in one line elsewhere). docs/ARCHITECTURE.md, "One generation, top to bottom", walks through it.
 """
 
 from __future__ import annotations
@@ -50,12 +45,10 @@ class CC11ESState(RunState):
 
 
 class CC11ES(Algorithm):
-    """Built from ``conf/algorithm/cc11es.yaml``: the nodes of the ``k``, ``selection``, ``team`` and ``mutation``
-    groups, and the initial genome range (``policy.init_low``, ``policy.init_high``).
-
-    Under ``evaluation.fresh_ic`` every generation scores the parents again on the child's fresh initial
-    conditions, so selection compares the two on one draw; ``score`` is then the kept team's F on that draw.
-    """
+    """Built from ``conf/algorithm/cc11es.yaml``: the ``k``, ``selection``, ``team`` and ``mutation`` nodes and the
+    initial genome range (``policy.init_low``, ``policy.init_high``). Under ``evaluation.fresh_ic`` every generation
+    scores the parents again on the child's fresh initial conditions, so selection compares the two on one draw;
+    ``score`` is then the kept team's F on that draw."""
 
     state_type = CC11ESState
     fresh_ic = True
@@ -106,7 +99,11 @@ class CC11ES(Algorithm):
         return self.composition.genomes(state.parents)
 
     def _advance(self, state, generation, n, evaluate, observer):
-        selector, rng_mut, rng_sel, parents, f_parent, h = self._start(state, n)
+        selector = copy.deepcopy(self.selector)                              # the chunk's copy, in the run's state
+        selector.load_state_dict(state.selector)
+        rng_mut, rng_sel = generator(state.rng_mut), generator(state.rng_sel)
+        parents, f_parent = np.array(state.parents, dtype=np.float64), float(state.score)
+        h = {"score": np.empty(n), **{s.name: s.empty(n) for s in self.series}}
         out = (h["score"], h["k"], h["accepted"], h["switched"], h["child_score"], h.get("probs", NO_PROBS))
         compiled_loop = self._compiled(evaluate)
         if compiled_loop:
@@ -124,7 +121,8 @@ class CC11ES(Algorithm):
                                   f_parent != f_before, None if final_xy is None else final_xy.copy())
         if compiled_loop:
             compiled.finish(selector, evaluate, n)
-        return self._state(parents, f_parent, rng_mut, rng_sel, selector), h
+        return CC11ESState(parents=parents, score=f_parent, rng_mut=rng_mut.bit_generator.state,
+                           rng_sel=rng_sel.bit_generator.state, selector=selector.state_dict()), h
 
     def _compiled(self, evaluate) -> bool:
         """Whether this chunk runs compiled (``algorithm.loop``; ``compiled`` where it does not apply: refused)."""
@@ -135,36 +133,18 @@ class CC11ES(Algorithm):
             raise AlgorithmError(f"algorithm.loop=compiled: {why}")
         return why is None
 
-    def _start(self, state, n):
-        """The loop's working objects from run ``state``: the selector (a copy, in its state), the generators
-        ``rng_mut`` and ``rng_sel``, the parents (M, P) and their score, and the arrays of ``n`` generations (the
-        score and the declared series)."""
-        selector = copy.deepcopy(self.selector)
-        selector.load_state_dict(state.selector)
-        return (selector, generator(state.rng_mut), generator(state.rng_sel),
-                np.array(state.parents, dtype=np.float64), float(state.score),
-                {"score": np.empty(n), **{s.name: s.empty(n) for s in self.series}})
-
-    @staticmethod
-    def _state(parents, score, rng_mut, rng_sel, selector) -> CC11ESState:
-        """The run state after a chunk."""
-        return CC11ESState(parents=parents, score=score, rng_mut=rng_mut.bit_generator.state,
-                           rng_sel=rng_sel.bit_generator.state, selector=selector.state_dict())
-
     def allowed_k(self, k, selector) -> int:
         """``k`` if the selector may choose it (its arms, within 1..N), else :class:`AlgorithmError`."""
         if k not in self.allowed or isinstance(k, bool):
             cls = type(selector)
             raise AlgorithmError(f"k-selector {cls.__module__}.{cls.__qualname__} ({inspect.getsourcefile(cls)}) "
-                                 f"chose k={k!r}; allowed: "
-                                 f"{', '.join(map(str, sorted(self.allowed)))} (its arms within 1..N="
-                                 f"{self.world.n_rovers})")
+                                 f"chose k={k!r}; allowed: {', '.join(map(str, sorted(self.allowed)))} (its arms "
+                                 f"within 1..N={self.world.n_rovers})")
         return k
 
 
 def _python_context(algo, selector, rng_mut, rng_sel, evaluate, observer, generation) -> Context:
-    """The Python operations' context for a chunk of CC11ES ``algo``: its operator objects, any plug-in's, the
-    chunk's copy of the selector, the generators, the run's evaluation and observer, the chunk's first generation;
+    """The Python operations' context for a chunk of CC11ES ``algo`` (a generation.Context);
     ``evaluation.final_xy``: the last team's final positions (E, N, 2) as the evaluation measured them."""
     team = algo.composition
     evaluation = SimpleNamespace(evaluate=evaluate, composition=team, generation=generation, final_xy=None)

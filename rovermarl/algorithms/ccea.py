@@ -1,25 +1,12 @@
-"""The classic rover-domain CCEA, a baseline: one population of ``pop_size`` genomes per rover, teams formed by
-shuffling the populations, each member scored by its team's credit (G, D or D++; :mod:`~rovermarl.algorithms.credit`).
-
-One generation (after the AADI lab's rover-domain CCEA; our own code):
-
-1. each population is shuffled; team j takes the j-th member of every population (``pop_size`` teams);
-2. each team is evaluated on the run's initial conditions, and each member gets its rover's credit of that team,
-   averaged over the episodes (``reward``: ``global`` = F itself, ``difference``, ``dpp``);
-3. each population keeps its ``elites`` best members unchanged (slot 0 the best) and fills the other slots by binary
-   tournament (two distinct members, the fitter wins, a tie by a coin), then mutates them (the ``mutation`` group);
-4. the team of the elites (each population's best of step 2) is evaluated: its F is the score curve, as comparable
-   with CC-(1+1)-ES's as its team is.
+"""The classic rover-domain CCEA, a baseline (after the AADI lab's code; our own): one population of ``pop_size``
+genomes per rover, teams formed by shuffling the populations, each member scored by its team's credit (G, D or D++;
+:mod:`~rovermarl.algorithms.credit`). docs/BASELINES.md, "What runs", gives its four steps per generation; they are
+marked 1.-4. in :meth:`CCEA._advance`.
 
 ``final_team``: ``last`` (default) makes the elites team of the last generation the run's team; ``best`` keeps the
-best elites team so far, a new one replacing it when it scores at least as well on the same initial conditions.
-Under ``evaluation.fresh_ic`` (SPEC section 8) each generation draws its own initial conditions and scores every
-team there, the kept team of ``best`` again beside the new one (one evaluation more).
-
-A generation therefore costs ``pop_size + 1`` team evaluations (``+ 1`` for ``best`` under ``fresh_ic``); the
-``team_evals`` series counts them (the initial team's included) so that curves can be compared at equal evaluations.
-The default ``pop_size`` of 10 is the AADI code's usual population for rover teams of this size.
-
+best elites team so far (:func:`~rovermarl.algorithms.final_team.keep_best`). Under ``evaluation.fresh_ic`` (SPEC
+section 8) each generation draws its own initial conditions and scores every team there. A generation costs
+``pop_size + 1`` team evaluations (``+ 1`` for ``best`` under ``fresh_ic``), counted by the ``team_evals`` series.
 Run state: :class:`CCEAState`.
 """
 
@@ -30,15 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import (
-    LOOPS,
-    Algorithm,
-    RunState,
-    Series,
-    build_operator,
-    generator,
-    init_range,
-)
+from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, build_operator, generator, init_range
 from rovermarl.algorithms.credit import CREDITS, credit
 from rovermarl.algorithms.final_team import FINAL_TEAMS, keep_best
 
@@ -106,7 +85,7 @@ class CCEA(Algorithm):
         for t in range(n):
             if evaluate.fresh:
                 evaluate.draw(generation + t + 1)                                           # SPEC section 8
-            teams = np.argsort(rng.random((self.world.n_rovers, self.pop_size)), axis=1)   # 1. shuffle
+            teams = np.argsort(rng.random((self.world.n_rovers, self.pop_size)), axis=1)   # 1. shuffle, pair
             fitness = self._fitness(pops, teams, evaluate)                                  # 2. credit
             pops, h["fitness"][t] = self._select(pops, fitness, rng)                        # 3. select, mutate
             team = _elites(pops)
@@ -138,8 +117,8 @@ class CCEA(Algorithm):
         return fitness
 
     def _select(self, pops, fitness, rng) -> tuple[np.ndarray, np.ndarray]:
-        """The next populations (elites first, then mutated tournament winners) and each population's best fitness
-        (N,). pops (N, pop_size, P), fitness (N, pop_size)."""
+        """The next populations (elites first, then mutated winners of binary tournaments, a tie by a coin) and each
+        population's best fitness (N,). pops (N, pop_size, P), fitness (N, pop_size)."""
         rovers, size, e = self.world.n_rovers, self.pop_size, self.elites
         order = np.argsort(-fitness, axis=1, kind="stable")                      # best first, ties by index
         a = rng.integers(0, size, (rovers, size - e))

@@ -1,26 +1,14 @@
-"""CMA-ES over the whole team, a baseline: one search distribution over all N x P parameters (4 x 658 = 2632), each
-generation's population scored in one :meth:`Evaluator.measure_many` call (``World.evaluate_many``).
+"""sep-CMA-ES (Ros & Hansen 2008: diagonal covariance) over the whole team, a baseline: one search distribution over
+all N x P parameters (4 x 658 = 2632), each generation's ``lam`` samples scored in one
+:meth:`Evaluator.measure_many` call; the team is the best sample so far (elitist). Run state: :class:`SepCMAState`.
 
-The variant is **sep-CMA-ES** (Ros & Hansen 2008): the covariance is diagonal. Full CMA-ES keeps an n x n covariance
-and decomposes it, O(n^2) memory and up to O(n^3) time per generation; at n = 2632 that is 55 MB of state per run
-(checkpointed every time) and an eigendecomposition that costs more than the generation's 27 team evaluations.
-sep-CMA's state and update are O(n), and its learning rates for the diagonal are (n + 2) / 3 times larger, so it
-adapts in O(n) generations where full CMA needs O(n^2) (a 20,000-evaluation budget is ~740 generations here).
+Diagonal because full CMA-ES's n x n covariance is 55 MB of checkpointed state at n = 2632 and its
+eigendecomposition costs more than a generation's 27 team evaluations (docs/LEARNERS.md). The update (Hansen's
+tutorial's equations with the separable learning rates, (n + 2) / 3 times larger) is written out here because the
+``cma`` package's state does not resume bit-identically from a checkpoint of plain arrays.
 
-The update is written out here (about forty lines, Hansen's tutorial's equations with the separable learning rates)
-rather than taken from the ``cma`` package: its state does not resume bit-identically from a checkpoint of plain
-arrays, and a run here must (a run is a pure function of its config and seed). One generation:
-
-1. ``lam`` genomes x = m + sigma * sqrt(C) * z, z ~ N(0, I) from the run's ``mutation`` stream;
-2. scored as teams (x split into N genomes of P) in one call; ranked by score, best first (ties by index);
-3. mean, evolution paths, diagonal C and step size sigma updated from the best ``mu = lam // 2`` (log weights);
-4. the team is the best sample so far: the score curve is its score (elitist, like CC-(1+1)-ES's parent team).
-
-Under ``evaluation.fresh_ic`` (SPEC section 8) each generation draws its own initial conditions, scores the population
-there and the kept best sample again beside it (one evaluation more); a sample replaces it when it scores at least as
-well there (as CC-(1+1)-ES re-scores its parents).
-
-Run state: :class:`SepCMAState`.
+Under ``evaluation.fresh_ic`` (SPEC section 8) each generation scores the population and the kept best sample again
+on its own initial conditions; a sample replaces it when it scores at least as well there.
 """
 
 from __future__ import annotations
@@ -109,20 +97,20 @@ class SepCMA(Algorithm):
         score, h = np.empty(n_gen), {s.name: s.empty(n_gen) for s in self.series}
         shape, mu = (self.lam, self.world.n_rovers, self.world.n_params), self.lam // 2
         for t in range(n_gen):
-            z = rng.standard_normal((self.lam, self.n))                                # 1. sample
+            z = rng.standard_normal((self.lam, self.n))                                # x = m + sigma * sqrt(C) * z
             y = z * np.sqrt(diag)
             x = mean + sigma * y
             if evaluate.fresh:                                                         # new starts: the kept best
                 evaluate.draw(generation + t + 1)                                      # scored there again
                 best_score, evals = evaluate.score(best), evals + 1
-            measured = evaluate.measure_many(x.reshape(shape))                         # 2. score, rank
+            measured = evaluate.measure_many(x.reshape(shape))                         # the population in one call
             f = np.array([m.score for m in measured])
-            order = np.argsort(-f, kind="stable")
+            order = np.argsort(-f, kind="stable")                                      # best first, ties by index
             evals += self.lam
-            if f[order[0]] > best_score or (evaluate.fresh and f[order[0]] == best_score):   # 4. the best so far
+            if f[order[0]] > best_score or (evaluate.fresh and f[order[0]] == best_score):   # the best so far
                 best, best_score = x[order[0]].reshape(shape[1:]), float(f[order[0]])
                 observer.accepted(generation + t + 1, best, best_score, True, measured[order[0]].final_xy)
-            yw = self.weights @ y[order[:mu]]                                          # 3. update
+            yw = self.weights @ y[order[:mu]]                                          # the best mu, log weights
             mean = mean + sigma * yw
             ps = (1 - self.cs) * ps + math.sqrt(self.cs * (2 - self.cs) * self.mueff) * yw / np.sqrt(diag)
             gen += 1

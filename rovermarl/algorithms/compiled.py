@@ -1,18 +1,13 @@
 """CC-(1+1)-ES's generation loop (:func:`~rovermarl.algorithms.generation.generations`, its one source) compiled
-over the numba functions of its common operators (:data:`COMPILED`), bit-identical to the same loop run in Python
-over any operators (:data:`~rovermarl.algorithms.cc11es.PYTHON`).
+over the numba functions of its common operators (:data:`COMPILED`), bit-identical to the same loop run as Python
+over any operators (:data:`~rovermarl.algorithms.cc11es.PYTHON`); docs/ARCHITECTURE.md, "One generation".
 
-The common case: k fixed or EXP3 (``k=1..N``, ``k=adaptive``), the mixed mutation, soft or strict selection, a
-heterogeneous or homogeneous team (exactly the classes of :data:`OPERATORS`), in any world (a plug-in's: a copy of
-this module around its own rollout, :func:`loop_of`), scored in this process on the run's initial conditions
-(not fresh ones, not IC shards). :func:`refusal` says why a run is not in it (None: it is); ``algorithm.loop``
-chooses (``auto``: compiled wherever it applies).
-
-The operations call the operators' own numba functions (``draw_arm``, ``exp3_update``, ``bandit_reward``,
-``pick_distinct``, ``mixed``, ``keeps``), which their Python classes call too, the world's kernel and its
-:func:`~rovermarl.env.kernel.score`; numba draws the same numbers from a numpy ``Generator`` as numpy does.
-Accepted generations are rare (1 in 196 with k=1 and 1 in 147 with EXP3 in 20,000-generation runs on solo), so
-a compiled call stops after each one and Python tells the observer (trajectories, occupancy), then calls again.
+It runs exactly the classes of :data:`OPERATORS` (k fixed or EXP3, the mixed mutation, soft or strict selection,
+either team), in any world (a plug-in's: a copy of this module around its own rollout, :func:`loop_of`), with teams
+scored in this process on the run's fixed initial conditions; :func:`refusal` says why a run is not in it. numba
+draws the same numbers from a numpy ``Generator`` as numpy does. Accepted generations are rare (1 in 196 with k=1
+and 1 in 147 with EXP3 in 20,000-generation runs on solo), so a compiled call stops after each one and Python tells
+the observer (trajectories, occupancy), then calls again.
 
 Why compile it: a generation's team evaluation is about 45 us of compiled work, and the Python operations add their
 calls to each. ``python benchmarks/loop.py`` (500-generation chunks, alternated, medians of 7) gave the compiled
@@ -55,9 +50,8 @@ def refusal(algo, fresh: bool, local: bool) -> str | None:
     """Why the compiled loop cannot run CC11ES ``algo`` (None: it can): under ``evaluation.fresh_ic`` (``fresh``),
     with teams not scored in this process (``local`` false: IC shards), or with an operator that is not exactly one
     of :data:`OPERATORS`."""
-    ops = {"selector": algo.selector, "mutate": algo.mutate, "accept": algo.accept, "composition": algo.composition}
-    for attr, op in ops.items():
-        classes = OPERATORS[attr]
+    for attr, classes in OPERATORS.items():
+        op = getattr(algo, attr)
         if type(op) not in classes:
             return (f"it runs only the packaged operators {', '.join(c.__name__ for c in classes)} as "
                     f"{attr}, not {type(op).__module__}.{type(op).__name__} (the Python loop runs any)")
@@ -106,10 +100,9 @@ def finish(selector, evaluate, n: int) -> None:
 
 
 def loop_of(kernel):
-    """The module whose :func:`run` runs the world kernel ``kernel`` (``World.compiled``): this one for the
-    paper world's, else a copy of this module whose ``rollout`` is the plug-in's (compiled into the loop as the paper
-    world's is; ``benchmarks/plugin_loop.py`` measures the two), made by ``compose.fill`` (the import it replaces is
-    asserted: a plug-in never trains with the paper's rollout)."""
+    """The module whose :func:`run` runs the world kernel ``kernel`` (``World.compiled``): this one for the paper
+    world's, else a copy whose ``rollout`` is the plug-in's (``benchmarks/plugin_loop.py`` measures the two), made by
+    ``compose.fill`` (the import it replaces is asserted: a plug-in never trains with the paper's rollout)."""
     return sys.modules[__name__] if kernel is fused else _copy(kernel.__name__)
 
 
@@ -196,13 +189,10 @@ def run(t, n, parents, f_parent, out_score, out_k, out_accepted, out_switched, o
         xy0, h0, world, returns, final_xy, team, no_xy, no_heading,
         mutated, parent_poi, poi_xy, radius, strict):
     """:func:`~rovermarl.algorithms.generation.generations` over :data:`COMPILED`, its context built from
-    :func:`arguments`: ``k`` (:class:`KSelector`: the selector's generator, ``fixed_k`` (0: EXP3), EXP3's ``arms``
-    (K,), ``gamma``, ``gain``, ``f_max`` and its ``log_w``, ``probs`` (K,), changed in place), ``team``
-    (:class:`TeamMutation`: the mutation's generator and parameters, the work array ``children`` (M, P)),
-    ``evaluation`` (:class:`Evaluation`: the rollout's arguments ``World.kernel_args``, ``xy0``, ``h0``, ``world``,
-    its outputs ``returns`` (E,) and ``final_xy`` (E, N, 2; (0, 1, 2): none kept), the work array ``team`` (N, P), no
-    trajectories), ``observer`` (:class:`Switches`: the work array ``mutated`` (N,), what the switched count
-    compares: the observer's ``parent_poi`` (E, N), ``poi_xy``, ``radius``) and ``selection`` (``strict``)."""
+    :func:`arguments`: :class:`KSelector` (``fixed_k`` 0: EXP3, whose ``log_w`` and ``probs`` (K,) change in place),
+    :class:`TeamMutation` (work array ``children`` (M, P)), :class:`Evaluation` (``World.kernel_args``; outputs
+    ``returns`` (E,) and ``final_xy`` (E, N, 2), (0, 1, 2): none kept; work array ``team`` (N, P); no trajectories),
+    :class:`Switches` (work array ``mutated`` (N,); the observer's ``parent_poi`` (E, N)) and ``strict``."""
     cx = Context(KSelector(rng_sel, fixed_k, arms, gamma, gain, f_max, log_w, probs),
                  TeamMutation(rng_mut, n_rovers, homogeneous, p_gaussian, sigma, m, low, high, children),
                  Evaluation(n_rovers, homogeneous, xy0, h0, world, returns, final_xy, team, no_xy, no_heading),

@@ -1,9 +1,6 @@
 """Credit of each rover for a team's episodes: the global reward G, the difference reward D (Agogino and Tumer) and
-D++ (Rahmattalabi et al., 2016), from trajectories and the world's own reward reading.
-
-Shapes: E episodes, T steps, N rovers; trajectories xy (E, T+1, N, 2) and the episodes' layout (E, K) as
-:meth:`World.rollout <rovermarl.env.World.rollout>` returns them. Each credit is (N, E): rover i's credit in
-episode e.
+D++ (Rahmattalabi et al., 2016), from trajectories xy (E, T+1, N, 2) and the episodes' layout (E, K) as
+:meth:`World.rollout <rovermarl.env.World.rollout>` returns them. Each credit is (N, E): rover i's in episode e.
 
 - ``G``: the team return, the same for every rover.
 - ``D_i = G(z) - G(z_{-i})``: the team return minus the return of the team with rover i removed.
@@ -12,10 +9,9 @@ episode e.
   gain per partner with N - 1 of them, or that one if none does. ``gain(n) = (G(z + n copies of i) - G(z)) / n``.
   This is the published algorithm as the AADI lab's rover-domain code implements it.
 
-Counterfactual teams are scored by :meth:`World.episode_return <rovermarl.env.World.episode_return>`, which takes
-any number of rovers, so every world reading (``env.reward``) credits its own way, and on each episode's own
-layout: a world whose POIs are drawn per episode or move (``layout_dim`` K > 0) scores every counterfactual team of
-episode e against episode e's POIs.
+Counterfactual teams are scored by the world's own reading (``env.reward``) through
+:meth:`World.episode_return <rovermarl.env.World.episode_return>`, which takes any number of rovers, each episode on
+its own layout (a world whose POIs are drawn per episode or move, ``layout_dim`` K > 0).
 """
 
 from __future__ import annotations
@@ -45,23 +41,14 @@ def _laid_out(layout: np.ndarray | None) -> bool:
 
 
 def global_reward(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray | None = None) -> np.ndarray:
-    """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K).
-
-    >>> from rovermarl.env import make_world
-    >>> w = make_world("duo", n_rovers=2, steps=1)
-    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [12.5, 0.0]]]])   # E = 1: both end on duo POI 0
-    >>> global_reward(w, xy).tolist()
-    [[3.0], [3.0]]
-    """
+    """G for every rover: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K)."""
     g = world.episode_return(xy, layout) if g is None else g
     return np.broadcast_to(g, (xy.shape[-2], g.shape[0])).copy()
 
 
 def without(xy: np.ndarray) -> np.ndarray:
     """The N teams with one rover removed: xy (E, T+1, N, 2) -> (N, E, T+1, N-1, 2), team i without rover i."""
-    n = xy.shape[-2]
-    keep = np.array([[j for j in range(n) if j != i] for i in range(n)], dtype=np.int64).reshape(n, n - 1)
-    return np.stack([xy[:, :, keep[i]] for i in range(n)])
+    return np.stack([np.delete(xy, i, axis=-2) for i in range(xy.shape[-2])])
 
 
 def with_partners(xy: np.ndarray, n: int) -> np.ndarray:
@@ -74,14 +61,7 @@ def with_partners(xy: np.ndarray, n: int) -> np.ndarray:
 
 
 def difference(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray | None = None) -> np.ndarray:
-    """D: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K) the episodes'.
-
-    >>> from rovermarl.env import make_world
-    >>> w = make_world("duo", n_rovers=2, steps=1)
-    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [12.5, 0.0]]]])   # both end on duo POI 0
-    >>> difference(w, xy).tolist()                                                  # each is needed
-    [[3.0], [3.0]]
-    """
+    """D: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K) the episodes'."""
     g = world.episode_return(xy, layout) if g is None else g
     return g[None, :] - _returns(world, without(_scored(world, xy, layout)), layout)
 
@@ -90,9 +70,12 @@ def dpp(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray |
     """D++: xy (E, T+1, N, 2) -> (N, E); ``g`` (E,) the team returns if known, ``layout`` (E, K) the episodes'.
 
     >>> from rovermarl.env import make_world
-    >>> w = make_world("duo", n_rovers=2, steps=1)
-    >>> xy = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [0.0, 0.0]]]])     # rover 0 alone on duo POI 0
-    >>> difference(w, xy).tolist(), dpp(w, xy).tolist()                             # D sees nothing; D++ sees 3
+    >>> w = make_world("duo", n_rovers=2, steps=1)                                  # duo: 2 rovers needed at a POI
+    >>> both = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [12.5, 0.0]]]])  # E = 1: both end on POI 0
+    >>> alone = np.array([[[[0.0, 0.0], [0.0, 0.0]], [[13.0, 0.0], [0.0, 0.0]]]])  # rover 0 alone on POI 0
+    >>> global_reward(w, both).tolist(), difference(w, both).tolist()              # each is needed
+    ([[3.0], [3.0]], [[3.0], [3.0]])
+    >>> difference(w, alone).tolist(), dpp(w, alone).tolist()                      # D sees nothing; D++ sees 3
     ([[0.0], [0.0]], [[3.0], [0.0]])
     """
     g = world.episode_return(xy, layout) if g is None else g
@@ -102,13 +85,9 @@ def dpp(world, xy: np.ndarray, g: np.ndarray | None = None, layout: np.ndarray |
         return d
     xy = _scored(world, xy, layout)
     gain = np.stack([(_returns(world, with_partners(xy, n), layout) - g[None, :]) / n for n in range(1, rovers)])
-    most = gain[-1]                                                       # (N, E): N - 1 partners
-    out = most.copy()
-    decided = np.zeros(most.shape, dtype=bool)
-    for n in range(1, rovers - 1):                                        # the fewest partners that beat N - 1
-        better = ~decided & (gain[n - 1] > most)
-        out[better] = gain[n - 1][better]
-        decided |= better
+    most = out = gain[-1]                                                 # (N, E): N - 1 partners
+    for n in range(rovers - 2, 0, -1):                # the fewest partners that beat N - 1: written last, so kept
+        out = np.where(gain[n - 1] > most, gain[n - 1], out)
     return np.where(most <= d, d, out)
 
 

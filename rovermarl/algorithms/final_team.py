@@ -35,14 +35,10 @@ class SharedActor(Algorithm):
             state.best = team[0].copy()
         return measured
 
-    def _kept(self, state: RunState) -> np.ndarray | None:
-        """The kept team (N, P) under ``best``, else None."""
-        return self.world.homogeneous(np.asarray(state.best, dtype=np.float64)) if self.final_team == "best" \
-            else None
-
     def _team(self, state):
-        kept = self._kept(state)
-        return self._genomes(state.params) if kept is None else kept
+        if self.final_team == "best":                                     # the kept iterate's team
+            return self.world.homogeneous(np.asarray(state.best, dtype=np.float64))
+        return self._genomes(state.params)
 
     def _scored(self, state: RunState, best, evaluate: Evaluator, generation: int, kept_score: float):
         """Score the new iterate in ``state`` (its ``params``) at the end of ``generation`` against the kept one,

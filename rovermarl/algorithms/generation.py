@@ -1,13 +1,8 @@
 """CC-(1+1)-ES's generation loop (SPEC section 6), its one source: steps 1-7 of each generation over the operations
-``ops`` (:class:`Ops`) on a context ``cx``.
-
-Two sets of operations run it:
-
-- :data:`rovermarl.algorithms.cc11es.PYTHON`: Python functions over any operator objects (a plug-in's too) and the
-  run's evaluation and observer; :class:`~rovermarl.algorithms.cc11es.CC11ES` calls ``generations.py_func``;
-- :data:`rovermarl.algorithms.compiled.COMPILED`: numba functions of the packaged operators and the world's kernel;
-  ``compiled.run`` calls :func:`generations` compiled around them (numba compiles a function passed as an argument
-  into its caller).
+``ops`` (:class:`Ops`) on a context ``cx``, either :data:`rovermarl.algorithms.cc11es.PYTHON` (any operator objects,
+run as ``generations.py_func``) or :data:`rovermarl.algorithms.compiled.COMPILED` (numba functions, compiled into
+``compiled.run``: numba compiles a function passed as an argument into its caller). docs/ARCHITECTURE.md, "One
+generation, top to bottom".
 
 A call runs generations t..n-1 and returns after the first that keeps its children, so that the caller tells the
 observer (step 7).

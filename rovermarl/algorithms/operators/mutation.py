@@ -43,18 +43,11 @@ def mixed(genome, rng, p_gaussian, sigma, m, low, high):
     """
     if rng.random() < p_gaussian:
         return genome + rng.normal(0.0, sigma, genome.shape[0])
-    child = genome.copy()
-    _reset_distinct(child, rng.random(m), rng.uniform(low, high, m))
-    return child
-
-
-@njit(cache=True)
-def _reset_distinct(child, u, values):
-    """Set ``len(values)`` distinct entries of ``child`` (P,), chosen uniformly by a partial Fisher-Yates
-    shuffle driven by ``u`` (m,) in [0, 1), to ``values`` (m,), in place."""
-    n = child.shape[0]
+    child, n = genome.copy(), genome.shape[0]
+    u, values = rng.random(m), rng.uniform(low, high, m)
     perm = np.arange(n)
-    for i in range(values.shape[0]):
+    for i in range(m):                  # m distinct entries, by a partial Fisher-Yates shuffle driven by u (m,)
         j = min(i + int(u[i] * (n - i)), n - 1)
         perm[i], perm[j] = perm[j], perm[i]
         child[perm[i]] = values[i]
+    return child

@@ -1,9 +1,6 @@
-"""k-selectors: how many rovers to mutate each generation. Built from ``conf/k/*.yaml`` with
-``hydra.utils.instantiate(cfg.k, n_agents=N, f_max=F_max)``.
-
-A selector subclasses :class:`KSelector`: it sets ``arms`` (the k values it may return), implements
-:meth:`choose`, and may learn in :meth:`update` and expose ``probs`` (one per arm) for recording.
-"""
+"""k-selectors: how many rovers to mutate each generation, built from ``conf/k/*.yaml`` with ``n_agents=N`` and
+``f_max=F_max``. A selector subclasses :class:`KSelector`: it sets ``arms`` (the k values it may return), implements
+:meth:`~KSelector.choose`, and may learn in ``update`` and expose ``probs`` (one per arm) for recording."""
 
 from __future__ import annotations
 
@@ -59,8 +56,7 @@ class KSelector:
         return errors.choice("reward", reward, ("improved", "gain"))
 
     def reward(self, f_child: float, f_parent: float) -> float:
-        """The bandit reward of a generation: 1 if the team improved, else 0 (``reward_rule="improved"``), or the
-        normalised gain ``max(0, f_child - f_parent) / f_max`` (``"gain"``)."""
+        """The bandit reward of a generation by :attr:`reward_rule` (:func:`bandit_reward`)."""
         return bandit_reward(f_child, f_parent, self.reward_rule == "gain", self.f_max)
 
     def _draw(self, probs: np.ndarray, rng: np.random.Generator) -> int:
@@ -74,10 +70,9 @@ class KSelector:
         arms = list(arms) if not isinstance(arms, (str, int)) else [arms]
         if not arms or len(set(arms)) != len(arms):
             raise errors.ConfigError("arms", arms, f"must be a non-empty list of distinct k in 1..{self.n_agents}")
-        for a in arms:
-            if isinstance(a, bool) or not isinstance(a, int) or not 1 <= a <= self.n_agents:
-                raise errors.ConfigError("arms", arms, f"every k must be an integer in 1..{self.n_agents} "
-                                                       f"(env.n_rovers={self.n_agents})")
+        if any(isinstance(a, bool) or not isinstance(a, int) or not 1 <= a <= self.n_agents for a in arms):
+            raise errors.ConfigError("arms", arms, f"every k must be an integer in 1..{self.n_agents} "
+                                                   f"(env.n_rovers={self.n_agents})")
         return tuple(arms)
 
 
@@ -94,12 +89,9 @@ class FixedK(KSelector):
 
 
 class EXP3(KSelector):
-    """EXP3 (Auer et al. 2002) over the arms, with weights kept in log space.
-
-    ``p_i = (1 - gamma) w_i / sum(w) + gamma / K``; the pulled arm's weight is multiplied by
-    ``exp(gamma * (x / p_i) / K)``, with ``x = 1`` if ``f_child > f_parent`` else 0 (``reward=improved``)
-    or ``x = max(0, f_child - f_parent) / f_max`` (``reward=gain``).
-    """
+    """EXP3 (Auer et al. 2002) over the arms, with weights kept in log space: ``p_i = (1 - gamma) w_i / sum(w) +
+    gamma / K``; the pulled arm's weight is multiplied by ``exp(gamma * (x / p_i) / K)``, ``x`` the bandit
+    :meth:`~KSelector.reward`."""
 
     def __init__(self, n_agents: int, f_max: float = 1.0, gamma: float = 0.1, arms=None,
                  reward: str = "improved"):
