@@ -1,22 +1,16 @@
-"""Writes that cannot leave their directory, the one home of atomic writes (and of the fault-injection hook).
+"""Writes that cannot leave their directory: the one home of atomic writes and of the fault-injection hook.
 
-- :func:`beneath`: the directory a command writes to (a sweep, job or output dir; the one :mod:`~rovermarl.record.lock`
-  holds) is opened once, as the user named it; while the block runs, every write under it walks down from that
-  descriptor one part at a time with ``O_NOFOLLOW | O_DIRECTORY`` (``openat``). A part that is, or becomes, a symbolic
-  link or not a directory fails the write in one line (:class:`~rovermarl.record.safe_read.Unsafe`): a dir swapped for
-  a link between a check and a write never takes a file elsewhere. A ``beneath`` inside another one's dir is opened
-  by that walk too.
-- :func:`atomic_open`: a file is never truncated or appended in place: a new temp file is made in its (opened) dir,
-  written, fsynced, then renamed onto its name within that dir (``renameat``); a failed block leaves nothing, and
-  the temp file of a process killed meanwhile (SIGKILL) is removed by the next launch that holds the dir
-  (:func:`remove_stale`).
-- :func:`replace`, :func:`remove`: a rename or a removal within one dir, by its descriptor.
-- :func:`refuse_shared`: a file that others write in place (Hydra's ``.hydra/*.yaml``, ``multirun.yaml``, its
-  ``train.log``) that is a link or has other hard links is refused before a launch.
+- :func:`beneath`: the dir a command writes to (the one :mod:`~rovermarl.record.lock` holds) is opened once, as the
+  user named it; in the block every write under it walks down from that descriptor one part at a time with
+  ``O_NOFOLLOW | O_DIRECTORY`` (``openat``; Python has no ``openat2`` ``RESOLVE_BENEATH``). A part that is, or
+  becomes, a link or not a dir fails the write in one line (:class:`~rovermarl.record.safe_read.Unsafe`), so a dir
+  swapped for a link never takes a file elsewhere. A nested ``beneath`` is opened by that walk too.
+- :func:`atomic_open`: a new temp file in the (opened) dir, fsynced, then renamed onto its name (never truncated or
+  appended in place); a killed process's temp file is removed by the dir's next lock holder (:func:`remove_stale`).
+- :func:`check_output_dir`, :func:`refuse_shared`: the files Hydra writes in place must not be links or hard links.
 
-A write under no ``beneath`` block has its file's own dir as root (library use: only the file's last part is
-protected); a write outside the active root is refused. The root is per thread and task (a ``contextvars`` value).
-(Python has no ``openat2``; ``RESOLVE_BENEATH`` is what the part-by-part walk does by hand.)
+A write under no ``beneath`` block has its file's own dir as root (only the last part is protected); one outside the
+active root is refused. The root is per thread and task (a ``contextvars`` value). See docs/FAULTS.md.
 """
 
 from __future__ import annotations
@@ -63,13 +57,18 @@ def open_dir(path: Path, create: bool = False, own_root: bool = False) -> int:
     """A descriptor (the caller closes it) of the dir ``path``, walked from the active root without following a link
     (:class:`Unsafe` for a link or a non-dir part; ``create``: missing parts are made). Outside any root (or outside
     the active one, with ``own_root``: a new root), ``path`` is opened as named."""
-    root, rel = _split(path, own_root)
+    root = _ROOT.get()
+    rel = os.path.relpath(os.path.abspath(path), root.path) if root is not None else "."
+    if rel == ".." or rel.startswith(".." + os.sep):
+        if not own_root:
+            raise Unsafe(f"{path} lies outside {root.path}, the dir being written: refused")
+        root = None
     if root is None:
         if create:
             Path(path).mkdir(parents=True, exist_ok=True)
         return os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
     fd, where = os.dup(root.fd), Path(root.path)
-    for part in rel:
+    for part in rel.split(os.sep) if rel != "." else ():
         where = where / part
         try:
             try:
@@ -88,22 +87,6 @@ def open_dir(path: Path, create: bool = False, own_root: bool = False) -> int:
             os.close(fd)
         fd = child
     return fd
-
-
-def _split(path: Path, own_root: bool = False) -> tuple[_Root | None, list[str]]:
-    """The active root and the parts of ``path`` below it (:class:`Unsafe` if ``path`` lies outside it, or no root
-    with ``own_root``)."""
-    root = _ROOT.get()
-    if root is None:
-        return None, []
-    rel = os.path.relpath(os.path.abspath(path), root.path)
-    if rel == ".":
-        return root, []
-    if rel == ".." or rel.startswith(".." + os.sep):
-        if own_root:
-            return None, []
-        raise Unsafe(f"{path} lies outside {root.path}, the dir being written: refused")
-    return root, rel.split(os.sep)
 
 
 def _odd(dir_fd: int, name: str, where: Path, root: str) -> Unsafe:
@@ -132,18 +115,15 @@ def atomic_open(path: Path, mode: str = "wb", aside: Path | None = None):
             raise OSError(e.errno, e.strerror, str(path)) from None
         try:
             with os.fdopen(fd, mode) as f:
-                try:
-                    yield f
-                except OSError as e:
-                    if e.filename is None and not isinstance(e, Unsafe):   # a failed write: name its file
-                        raise OSError(e.errno, e.strerror, str(path)) from None
-                    raise
-                _settle(f, path)
+                yield f
+                f.flush()
+                fault(path)
+                os.fsync(f.fileno())
             if aside is not None:
                 with contextlib.suppress(FileNotFoundError):
                     os.replace(path.name, Path(aside).name, src_dir_fd=dfd, dst_dir_fd=dfd)
             os.replace(tmp, path.name, src_dir_fd=dfd, dst_dir_fd=dfd)
-        except OSError as e:
+        except OSError as e:                                            # a failed write: name its file
             if e.filename in (None, tmp, path.name) and not isinstance(e, Unsafe):
                 raise OSError(e.errno, e.strerror, str(path)) from None
             raise
@@ -158,9 +138,8 @@ TMP = re.compile(r"\..+\.(\d+)\.[0-9a-f]{8}\.tmp")   # atomic_open's temp file: 
 
 
 def remove_stale(dfd: int) -> int:
-    """Remove, under the dir opened as ``dfd`` (links not followed), the temp files of :func:`atomic_open` whose
-    process is no longer running (killed before it could remove them); called by the dir's lock holder, so no other
-    launch writes there. Returns how many."""
+    """Remove the temp files of :func:`atomic_open` under the dir ``dfd`` (links not followed) whose process is gone;
+    returns how many. Only the dir's lock holder calls it, so no other launch writes there."""
     removed = 0
     for _, _, files, fd in os.fwalk(".", dir_fd=dfd):
         for name in files:
@@ -180,13 +159,6 @@ def _running(pid: int) -> bool:
     except PermissionError:                                              # another user's process
         return True
     return True
-
-
-def _settle(f, path: Path) -> None:
-    """The temp file's data on disk (the fault-injection hook first)."""
-    f.flush()
-    fault(path)
-    os.fsync(f.fileno())
 
 
 def replace(src: Path, dst: Path) -> None:

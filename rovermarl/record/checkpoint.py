@@ -1,10 +1,9 @@
 """The driver's record of each run, and its checkpoint files.
 
-A run advances in chunks (on Ray or in this process). Each chunk returns its slice of the history, its
-events and the run's compact state; :class:`RunRecord` stitches them together. Every ``checkpoint.every``
-generations the record is written to ``runs/seed_XXX/checkpoint.bin`` (the previous one is kept as
-``checkpoint.prev.bin``). A checkpoint file is one header line ``RMCKPT2 <sha256 of payload>`` followed
-by an ``.npz`` payload; a truncated or corrupt file fails the checksum and is reported by name.
+A run advances in chunks (on Ray or in this process). Each chunk returns its slice of the history, its events and the
+run's compact state; :class:`RunRecord` stitches them together. Every ``checkpoint.every`` generations the record is
+written to ``runs/seed_XXX/checkpoint.bin`` (the previous one kept as ``checkpoint.prev.bin``): one header line
+``RMCKPT2 <sha256 of payload>``, then an ``.npz`` payload; a truncated or corrupt file fails the checksum.
 """
 
 from __future__ import annotations
@@ -74,8 +73,7 @@ class RunRecord:
 
     # ---- checkpoint files -----------------------------------------------------------------------
     def save(self, path: Path, config_hash: str) -> None:
-        """Write atomically; the previous checkpoint is kept as ``<name>.prev``. Only the generations done are
-        written, so a checkpoint grows with the generations done, not the generations asked."""
+        """Write atomically, the previous checkpoint kept as :func:`previous`; only the generations done are written."""
         g = self.generation
         arrays = {key: value for key, value in self.result().items() if key != "seed"}
         arrays["score"] = self.score[:g + 1]
@@ -93,11 +91,10 @@ class RunRecord:
     @classmethod
     def load(cls, path: Path, config_hash: str, generations: int | None = None, series=None,
              template=None) -> RunRecord:
-        """Read and verify a checkpoint (of a run of ``generations``, if given); raises :class:`CheckpointError`
-        naming the file. Its numbers are checked against each other and the config before anything is allocated:
-        every member is stored (nothing inflates), the declared ``series`` (when given) are the only ones, and the
-        state matches ``template()`` (a fresh run's :func:`_template` form) key for key, shape, dtype and finite
-        values for the same, before any of it reaches the kernel."""
+        """Read and verify a checkpoint (of a run of ``generations``, if given), else :class:`CheckpointError` naming
+        the file. Before anything is allocated its numbers are checked against each other and the config, every
+        member must be stored (nothing inflates) and the declared ``series`` (if given) be the only ones; the state
+        must match ``template()`` (a fresh run's) key for key in shape, dtype and finite values."""
         path = Path(path)
         try:
             data = read_bytes(path, cap=_cap(generations))
@@ -151,8 +148,7 @@ def _cap(generations: int | None) -> int:
 
 def _specs(generations: int | None, series) -> dict:
     """What a checkpoint's members may be: ``_meta`` (a JSON string), ``score`` (g+1,), the declared ``series``
-    (g, *shape), and any other array (the state's, the events', the initial conditions); all stored, so none is
-    larger than the file, and the state is then checked against a fresh run's (:func:`_check_form`)."""
+    (g, *shape), and any other array (state, events, initial conditions: checked later by :func:`_check_form`)."""
     g = generations if isinstance(generations, int) and 0 <= generations <= 10**10 else FREE
     specs = {"_meta": Spec((), "U"), "score": Spec((None,), "f", g + 1),
              ANY: tuple(Spec((None,) * n, "biuf", FREE) for n in range(7))}
@@ -173,8 +169,7 @@ def _check_form(rec: RunRecord, template: dict, done: int) -> None:
         if key in template:
             _same(rec.extra[key], np.asarray(template[key]), key)
     for key, parts in rec.events.items():
-        want = template["events"].get(key)
-        got = parts[0]
+        want, got = template["events"].get(key), parts[0]
         if want is None or got.dtype != want.dtype or got.shape[1:] != want.shape[1:] or len(got) > done + 2:
             raise ValueError(f"events {key!r} of shape {got.shape} {got.dtype}, not a fresh run's (first axis at most "
                              f"{done + 2})")

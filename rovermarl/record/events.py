@@ -1,16 +1,15 @@
-"""Behaviour events of one run, captured inside the generation loop (cheaply: only on accepted teams).
+"""Behaviour events of one run, captured inside the generation loop (cheaply: only on accepted teams); what each
+means is in docs/GUIDE.md (``behaviour.npz``, ``occupancy.npz``, ``switched`` of ``curve.npz``).
 
-- occupancy: how many rovers observe each POI at the end of each episode, ``count`` (E, P) int8. Logged at
-  generation 0 and whenever an accepted team changes it; the latest entry holds until the next one.
-- switched: per generation, in how many of the E episodes at least one rover that this generation did not mutate
-  ends observing a different POI (or none instead of one, or the reverse) in the evaluated team than in the
-  parent team: the phenotypic coupling of the paper's Section 5.3. -1 when every rover was mutated (k = N,
-  homogeneous team) or occupancy recording is off.
-- behaviour: the parent team's trajectories ``xy`` (E, T+1, N, 2) float32 at generation 0, at every accepted
-  generation that changed the score (and at the generation before it when the team changed since the last
-  entry, so every score change has its exact before and after), and at the last generation. Under
-  ``evaluation.fresh_ic`` scores come from ever new initial conditions, so only generation 0 and the last are logged
-  (``changes=False``), and occupancy and switched are not measured.
+- occupancy ``count`` (E, P) int8: rovers observing each POI at the end of each episode, at generation 0 and
+  whenever an accepted team changes it (each entry holds until the next);
+- switched: per generation, the episodes in which a rover this generation did not mutate ends observing another POI
+  (or none instead of one, or the reverse) than in the parent team (the paper's Section 5.3); -1 when every rover was
+  mutated (k = N, homogeneous team) or occupancy is off;
+- behaviour ``xy`` (E, T+1, N, 2) float32: the parent team's trajectories at generation 0, at each accepted score
+  change (and the generation before it if the team changed since the last entry: each change has its exact before
+  and after) and at the last generation. Under ``evaluation.fresh_ic`` each score comes from new initial
+  conditions, so only generation 0 and the last (``changes=False``), and no occupancy or switched.
 """
 
 from __future__ import annotations
@@ -28,9 +27,8 @@ class BehaviourObserver:
     """Measures a run's behaviour from the evaluations its algorithm makes (see the module doc).
 
     Built on the world, the run's initial conditions ``ic`` and the ``record`` switches (``occupancy``,
-    ``behaviour``; on if absent). It is told a team's final positions (E, N, 2) explicitly, as its evaluation
-    measured them (:meth:`Evaluator.measure <rovermarl.algorithms.base.Evaluator.measure>`, passed to
-    :meth:`evaluated` and :meth:`accepted`); its own buffers hold the parent team's.
+    ``behaviour``; on if absent). :meth:`evaluated` and :meth:`accepted` are told a team's final positions (E, N, 2)
+    as its evaluation measured them (:meth:`Evaluator.measure <rovermarl.algorithms.base.Evaluator.measure>`).
     """
 
     def __init__(self, world, ic, cfg, changes: bool = True):
@@ -54,36 +52,33 @@ class BehaviourObserver:
         return self.occupancy_on
 
     def occupancy(self, final_xy: np.ndarray) -> np.ndarray:
-        """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
+        """:func:`occupancy` in this observer's world."""
         return occupancy(self.world, final_xy)
 
     def observed(self, final_xy: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """The POI each rover observes at the end: final_xy (E, N, 2) -> (E, N) int16, lowest index within
         ``obs_radius``, -1 for none."""
         out = np.empty(final_xy.shape[:2], dtype=np.int16) if out is None else out
-        _observed(final_xy, self.world.poi_xy, float(self.world.obs_radius), out)
+        _observed(final_xy, self.world.poi_xy, self._radius, out)
         return out
 
     def evaluated(self, mutated: np.ndarray, final_xy: np.ndarray | None) -> int:
-        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI in the team evaluated with its
-        rovers ending at ``final_xy`` (E, N, 2) than under the parents; -1 if every rover was mutated or occupancy is
-        off."""
+        """Episodes in which a rover outside ``mutated`` (N,) bool ends at another POI, its team's rovers ending at
+        ``final_xy`` (E, N, 2), than under the parents; -1 if every rover was mutated or occupancy is off."""
         if not self.occupancy_on:
             return -1
         return switched(self._final_xy(final_xy), self.world.poi_xy, self._radius, self.parent_poi, mutated)
 
     @staticmethod
     def _final_xy(final_xy: np.ndarray | None) -> np.ndarray:
-        """The final positions (E, N, 2) an algorithm passed on; None is refused in one line."""
         if final_xy is None:
             raise AlgorithmError("the behaviour observer was told of a team without its final positions: pass on "
                                  "the final_xy of evaluate.measure(genomes)")
         return final_xy
 
     def switch_inputs(self) -> tuple | None:
-        """What :meth:`evaluated` compares, for a compiled loop that measures it itself
-        (:func:`kernel.switched <rovermarl.env.kernel.switched>`): ``(parent_poi (E, N), poi_xy, radius)``, or None
-        when nothing is measured."""
+        """What :meth:`evaluated` compares, for a compiled loop that calls :func:`~rovermarl.env.kernel.switched`
+        itself: ``(parent_poi (E, N), poi_xy, radius)``, or None when nothing is measured."""
         return (self.parent_poi, self.world.poi_xy, self._radius) if self.occupancy_on else None
 
     def start(self, genomes: np.ndarray, score: float, final_xy: np.ndarray | None) -> None:
@@ -111,7 +106,7 @@ class BehaviourObserver:
             self.parents, self.parent_score = genomes, score
 
     def finish(self, generation: int, genomes: np.ndarray, score: float) -> None:
-        """The run ended at ``generation``: log the final team's trajectories once."""
+        """The run ended at ``generation``: log the final team's trajectories (once)."""
         if self.behaviour_on and self.last_behaviour != generation:
             self._log_behaviour(generation, genomes, score)
 
@@ -152,12 +147,8 @@ class BehaviourObserver:
 def occupancy(world, final_xy: np.ndarray) -> np.ndarray:
     """Rovers within ``obs_radius`` of each POI: final_xy (E, N, 2) -> (E, P) int8 (same test as the reward)."""
     out = np.zeros((final_xy.shape[0], world.n_pois), dtype=np.int8)
-    _count(final_xy, world.poi_xy, float(world.obs_radius), out)
+    observers(final_xy, world.poi_xy, float(world.obs_radius), out)
     return out
-
-
-_count = observers   # (final_xy (E, N, 2), poi_xy (P, 2), radius, out (E, P)): out[e, j] += rovers within radius
-_poi = poi_of        # (x, y, poi_xy (P, 2), radius): the lowest POI index within radius (the reward's test), else -1
 
 
 @njit(cache=True)
@@ -165,4 +156,4 @@ def _observed(final_xy, poi_xy, radius, out):
     """out[e, i] = the POI rover i of episode e observes at the end, -1 for none: out (E, N)."""
     for e in range(final_xy.shape[0]):
         for i in range(final_xy.shape[1]):
-            out[e, i] = _poi(final_xy[e, i, 0], final_xy[e, i, 1], poi_xy, radius)
+            out[e, i] = poi_of(final_xy[e, i, 0], final_xy[e, i, 1], poi_xy, radius)

@@ -1,16 +1,12 @@
 """One writer per output directory: ``filelock``'s ``flock`` on ``<dir>/.lock``, held for the life of a launch.
 
-The dir is opened once (:func:`rovermarl.record.atomic.beneath`) and every write of the block is reached through its
-descriptor. ``filelock`` (>= 4.3) opens the lock file with ``O_NOFOLLOW`` and never truncates it; before it does, and
-again once it holds the lock, the file is checked beneath that descriptor: a link, a non-regular file, a file with
-other hard links or one that is not this dir's own is refused in one line (:class:`~rovermarl.record.safe_read.Unsafe`)
-and left as it was. Only then is the holder's line (PID, host, since when) written into it.
-
-A second launch on the same sweep or job dir stops at once with one line that names the holder; the lock goes away
-with the holder's process, however it ends, so a killed launch never blocks the next. Within one process the lock
-is re-entrant (a single-run launch and its job share one dir). A launch that stops before writing anything leaves
-no directory behind: the lock file and the dirs it created for the lock are removed with it. A launch's and a job's
-lock, once held, removes the temp files that a launch killed there left (:func:`rovermarl.record.atomic.remove_stale`).
+A second launch on the same sweep or job dir stops at once with one line naming the holder (:class:`Locked`); the
+lock goes with the holder's process however it ends, and is re-entrant within one process (a single-run launch and
+its job share one dir). While held, every write of the block goes through the dir's descriptor
+(:func:`rovermarl.record.atomic.beneath`). ``filelock`` (>= 4.3) opens the lock file with ``O_NOFOLLOW`` and never
+truncates it; before it does and once the lock is held, a lock file that is a link, not regular, hard-linked or not
+this dir's own is refused (:class:`~rovermarl.record.safe_read.Unsafe`) and left as it was; only then is the
+holder's line (PID, host, since when) written. A launch that writes nothing leaves no directory behind.
 """
 
 from __future__ import annotations

@@ -1,19 +1,15 @@
-"""Result files of a job, written atomically beneath the job dir (:mod:`rovermarl.record.atomic`).
+"""Result files of a job, written atomically beneath the job dir (:mod:`rovermarl.record.atomic`); docs/GUIDE.md
+("Outputs") describes each. A job dir holds ``summary.json`` and, per run, ``runs/seed_XXX/``:
 
-Job dir layout::
-
-    summary.json
-    runs/seed_XXX/curve.npz               score (G+1), then the algorithm's declared series (G, ...); for cc11es
-                                          k, accepted, switched int16, child_score, probs (G, K)
-    runs/seed_XXX/genomes.npy             final team genomes (N, P)
-    runs/seed_XXX/initial_conditions.npz  xy (E, N, 2), heading (E, N), [layout (E, K) of a world plug-in]
-    runs/seed_XXX/behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
-    runs/seed_XXX/occupancy.npz           generation (M,), count (M, E, P) int8
-    runs/seed_XXX/run.rrd                 Rerun recording (see rovermarl.record.rerun_log)
-    runs/seed_XXX/run.json                written last: the run is finished (seed, generations, final and held-out
-                                          score, config hash, provenance, and the size and SHA-256 of every
-                                          file above: a relaunch recomputes a run whose files do not verify)
-    runs/seed_XXX/checkpoint.bin          while the run is unfinished (see rovermarl.record.checkpoint)
+    curve.npz               score (G+1,), then the algorithm's declared series (G, ...)
+    genomes.npy             final team genomes (N, P)
+    initial_conditions.npz  xy (E, N, 2), heading (E, N), [layout (E, K) of a world plug-in]
+    behaviour.npz           generation (C,), score (C,), xy (C, E, T+1, N, 2) float32
+    occupancy.npz           generation (M,), count (M, E, P) int8
+    run.rrd                 Rerun recording (rovermarl.record.rerun_log)
+    run.json                written last: the run is finished; checksummed, with each file's size and SHA-256
+                            (a relaunch recomputes a run whose files do not verify)
+    checkpoint.bin          while the run is unfinished (rovermarl.record.checkpoint)
 """
 
 from __future__ import annotations
@@ -139,10 +135,8 @@ def outcome(score: np.ndarray, levels) -> dict:
 def summarize(choices: dict, seeds: list[int], outcomes: dict[int, dict], levels, wall_time_s: float,
               team_evals: int, heldout: dict[int, float], compile_s: float = 0.0,
               cpu_s: dict[int, float | None] | None = None) -> dict:
-    """The job's summary: config choices, per-seed final and held-out scores, first generations reaching each
-    level (``outcomes``: :func:`outcome` of each seed), each run's CPU-seconds (``cpu_s``; None: not recorded); the
-    rate of team evaluations leaves out ``compile_s``, the seconds of the wall time that numba spent compiling in
-    this process."""
+    """The job's summary of ``outcomes`` (:func:`outcome` per seed), held-out scores and CPU-seconds (None: not
+    recorded); the rate of team evaluations leaves out ``compile_s``, the wall time numba spent compiling here."""
     final = {str(s): outcomes[s]["final"] for s in seeds}
     held = {str(s): float(heldout[s]) for s in seeds}
     return {

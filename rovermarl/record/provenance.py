@@ -2,9 +2,6 @@
 package runs from a git checkout, the versions of the libraries that compute and record it (the learners' torch,
 stable-baselines3, gymnasium and MARL libraries among them: None when not installed), and the machine: torch on the
 CPU is deterministic on one machine, not across CPUs, so a learner's numbers are only comparable on the same ``cpu``.
-
->>> sorted(provenance())                 # doctest: +SKIP
-['commit', 'cpu', 'dirty', 'machine', 'packages', 'python', 'rovermarl']
 """
 
 from __future__ import annotations

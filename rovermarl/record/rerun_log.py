@@ -1,25 +1,19 @@
 """One Rerun recording (``.rrd``) per run, written by the driver from the run's arrays, with its own layout.
 
-Entities (2-D positions are world units, exactly as simulated; the static ``world`` transform flips y, so the 2-D
-view shows y pointing up, as in the matplotlib figures; Rerun's 2-D views otherwise point y down):
+Entities (2-D positions in world units, as simulated; the static ``world`` transform flips y so that y points up,
+as in the matplotlib figures, where Rerun's 2-D views point it down):
 
-- static ``world`` (the y flip), ``world/pois`` (POI centres, coloured by coupling), ``world/poi_labels`` (one
-  label per POI, just outside its ring), ``world/poi_radius`` (circles of the observation radius, same colours),
-  ``world/start_boxes`` (the rovers' start squares, rover colours);
-- timeline ``generation``: ``metrics/score``; every declared per-generation series at ``Series.path``
-  (``metrics/<name>``; a vector series, e.g. a bandit's probabilities, one entry per column under
-  ``<entity>/<column>``), generations whose value is the series' non-zero ``fill`` (-1, nan: not computed) left out;
-  ``occupancy/poi_<j>``: lane ``j`` of the occupancy chart, whose colour is the mean number of rovers at POI ``j``
-  at the end of an episode (the value is ``j``, the lane; logged at each change and at the last generation);
-  ``occupancy/count`` (tensor episode x POI, colour range 0..N) at each change;
-  ``world/episodes/<e>/trajectories`` (one line per rover) and ``world/episodes/<e>/ends`` (final positions) at
-  generation 0, every accepted score change and the last generation;
-- timeline ``step``: ``world/episodes/<e>/rovers``, the final team's positions along each episode;
-- static ``legend``: a short text on what the colours and views mean.
+- static: ``world`` (the flip), ``world/pois`` (coloured by coupling), ``world/poi_labels`` (just outside each
+  ring), ``world/poi_radius`` (observation-radius circles), ``world/start_boxes`` (rover colours), ``legend``;
+- timeline ``generation``: ``metrics/score``; each declared series at ``Series.path`` (a vector series one entry
+  per column, ``<entity>/<column>``), leaving out generations at the series' non-zero ``fill`` (-1, nan: not
+  computed); ``occupancy/poi_<j>``, lane j of the occupancy chart (value j, coloured by the mean number of rovers
+  at POI j at episode end; at each change and the last generation); ``occupancy/count`` (episode x POI tensor,
+  colour range 0..N) at each change;
+  ``world/episodes/<e>/trajectories`` and ``.../ends`` at generation 0, each accepted score change and the last;
+- timeline ``step``: ``world/episodes/<e>/rovers``, the final team's positions along each episode.
 
-The recording carries a blueprint (:func:`blueprint`), made active and default, so every run opens on the same
-layout: the world (tabs: episode 0, all episodes, occupancy per episode, legend) beside the score and child
-scores, k and the other series, the bandit's probabilities (if any) and the occupancy chart.
+A blueprint (:func:`blueprint`), active and default, opens every run on the same layout.
 """
 
 from __future__ import annotations
@@ -50,10 +44,13 @@ def write_rrd(path: Path, result: dict, world, series=(), every: int = 1, steps:
     series = tuple(s for s in series if s.name in result)
     last = len(result["score"]) - 1
     rec = rr.RecordingStream("rovermarl", recording_id=recording_id or path.parent.name)
-    stream = rec.binary_stream()      # to memory: the driver writes the file, so an I/O error is an OSError here
-    try:                              # (Rerun's own file sink blocks for ever in its flush on a full disk)
-        def drain() -> None:          # encode what was sent (the SDK's batches stay small); one read at the end:
-            stream.flush(timeout_sec=FLUSH_S)          # each read is a whole .rrd (header and footer) of its own
+    # To memory, the driver writing the file: an I/O error is then an OSError (Rerun's own file sink blocks for ever
+    # in its flush on a full disk). drain() encodes what was sent (the SDK's batches stay small); there is one read,
+    # at the end, as each read is a whole .rrd (header and footer) of its own.
+    stream = rec.binary_stream()
+    try:
+        def drain() -> None:
+            stream.flush(timeout_sec=FLUSH_S)
         vmax = occupancy_vmax(result)
         rec.send_blueprint(blueprint(world, series, last, _ranges(result, series), vmax), make_active=True,
                            make_default=True)
@@ -170,8 +167,7 @@ def legend(world, series=(), vmax: float = 1.0) -> str:
 # ---- data ------------------------------------------------------------------------------------------------------
 
 def _scene(rec, rr, world) -> None:
-    coupling = np.array(world.coupling)
-    colors = palette.poi_rgb(coupling)
+    colors = palette.poi_rgb(np.array(world.coupling))
     rec.log("world", rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)      # y up on screen
     rec.log("world/pois", rr.Points2D(world.poi_positions(), radii=0.35, colors=colors, draw_order=40.0), static=True)
     out = world.poi_xy * (1 + (world.obs_radius + 0.9) / max(world.poi_distance, 1e-9))
@@ -266,7 +262,6 @@ def _ranges(result, series) -> dict:
 def _occupancy(rec, rr, result, world, last, vmax) -> None:
     """Log the occupancy lanes (colours on the scale 0..``vmax``) and the per-episode count tensors."""
     gens, count = np.asarray(result["occupancy_generation"]), np.asarray(result["occupancy_count"])
-    coupling = np.array(world.coupling)
     if len(gens) == 0:
         return
     mean = count.mean(axis=1)                                            # (M, P) mean rovers per POI
@@ -274,7 +269,7 @@ def _occupancy(rec, rr, result, world, last, vmax) -> None:
     if gens[-1] < last:                                                  # the last value holds until the end
         hold, mean = np.r_[gens, last], np.vstack([mean, mean[-1:]])
     width = float(np.clip(150.0 / world.n_pois, 4.0, 16.0))
-    for j, c in enumerate(coupling):
+    for j, c in enumerate(world.coupling):
         rec.log(f"occupancy/poi_{j}", rr.SeriesLines(names=f"POI {j} (c={c})", widths=width,
                                                      interpolation_mode="StepAfter"), static=True)
         rec.send_columns(f"occupancy/poi_{j}", indexes=_columns(rr, hold),
@@ -300,13 +295,9 @@ def _trajectories(rec, rr, result, steps) -> None:
         rec.send_columns(f"world/episodes/{e}/ends", indexes=generation,
                          columns=rr.Points2D.columns(positions=xy[:, e, -1].reshape(c * n, 2), colors=colors,
                                                      radii=np.full(c * n, 0.3)).partition([n] * c))
-    if steps:                                                              # T+1 rows of N points each
-        step = rr.TimeColumn("step", sequence=np.arange(t1))
-        step_colors = np.tile(palette.rover_rgb(n), (t1, 1))
+    if steps:                                                              # the final team, step by step
         for e in range(n_ep):
-            rec.send_columns(f"world/episodes/{e}/rovers", indexes=[step],
-                             columns=rr.Points2D.columns(positions=xy[-1, e].reshape(t1 * n, 2), colors=step_colors,
-                                                         radii=np.full(t1 * n, 0.3)).partition([n] * t1))
+            _on_steps(rec, rr, f"world/episodes/{e}/rovers", xy[-1, e], palette.rover_rgb(n), 0.3)
 
 
 def _moving_pois(rec, rr, result, world) -> None:
@@ -316,9 +307,12 @@ def _moving_pois(rec, rr, result, world) -> None:
         return
     colors = palette.poi_rgb(np.array(world.coupling))
     for e in range(len(layout)):
-        track = world.poi_track(layout[e])                                 # (T+1, P, 2)
-        t1, p = track.shape[:2]
-        points = rr.Points2D.columns(positions=track.reshape(t1 * p, 2), colors=np.tile(colors, (t1, 1)),
-                                     radii=np.full(t1 * p, 0.35))
-        rec.send_columns(f"world/episodes/{e}/pois", indexes=[rr.TimeColumn("step", sequence=np.arange(t1))],
-                         columns=points.partition([p] * t1))
+        _on_steps(rec, rr, f"world/episodes/{e}/pois", world.poi_track(layout[e]), colors, 0.35)
+
+
+def _on_steps(rec, rr, entity: str, points: np.ndarray, colors, radius: float) -> None:
+    """``points`` (T+1, K, 2) on the ``step`` timeline: K points, in ``colors`` (K, 3), at each step."""
+    t1, k = points.shape[:2]
+    rec.send_columns(entity, indexes=[rr.TimeColumn("step", sequence=np.arange(t1))],
+                     columns=rr.Points2D.columns(positions=points.reshape(t1 * k, 2), colors=np.tile(colors, (t1, 1)),
+                                                 radii=np.full(t1 * k, radius)).partition([k] * t1))

@@ -1,23 +1,22 @@
-"""Reading a results directory as a careful user's adversary may have made it: the one home of the safe reads.
+"""Reading a results directory that an adversary may have made: the one home of the safe reads.
 
-- :func:`check_tree`: a results dir holds only directories and regular files; a symbolic link (to a file or a dir,
-  even one inside), a FIFO, a socket or a device anywhere under it is refused in one line, before anything is read
-  or written there (a link would let a relaunch write, truncate or delete files elsewhere; a FIFO hangs a read).
-- :func:`read_bytes`, :func:`read_text`, :func:`read_json`, :func:`read_yaml`: one regular file (opened with
-  ``O_NOFOLLOW | O_NONBLOCK``, then ``fstat``: ``S_ISREG``), at most ``cap`` bytes.
-- :func:`load_npz`, :func:`load_npy`: arrays whose every member is checked before anything is inflated or allocated:
-  its ``.npy`` header (dtype without objects, shape against the ``Spec`` the caller derives from the run's config)
-  agrees with the size the zip header declares; a stored member's declared size is its size on disk, and a
-  compressed one may only be as large as its spec allows; members outside the specs are refused. Memory then stays
-  within what a legitimate file of that config takes (twice: the bytes read and the array).
+- :func:`check_tree`: only directories and regular files under a results dir; a link (even to a place inside), FIFO,
+  socket or device is refused before anything is read or written there (a link would let a relaunch write,
+  truncate or delete files elsewhere; a FIFO hangs a read).
+- :func:`read_bytes`, :func:`read_json`, :func:`read_yaml`, :func:`read_jsonl`: one regular file (``O_NOFOLLOW |
+  O_NONBLOCK``, then ``fstat``), at most ``cap`` bytes, parsed and checked by :mod:`rovermarl.record.schemas`.
+- :func:`load_npz`, :func:`load_npy`: each member's ``.npy`` header (no object dtype; a shape the caller's
+  :class:`Spec`, from the run's config (:class:`RunSize`), allows) and zip sizes are checked before anything is
+  inflated or allocated, so memory stays within what a legitimate file of that config takes (twice).
 - :func:`safe_label`: a value from a file that becomes part of a path (a config hash, a label), or ``"unknown"``.
 
-Each failure is :class:`Unsafe` (a path refused) or :class:`Corrupt` (a file that is not what it claims); both are
+Each failure is :class:`Unsafe` (a path refused) or :class:`Corrupt` (a file that is not what it claims), both
 ``OSError`` subclasses with a one-line message naming the file.
 """
 
 from __future__ import annotations
 
+import errno
 import io
 import math
 import os
@@ -75,20 +74,6 @@ def refuse_odd(path: Path, what: str = "results dir") -> None:
         raise Unsafe(f"{path} is not a regular file or directory (a FIFO, socket or device): refused in this {what}")
 
 
-def inside(path: Path, root: Path) -> Path:
-    """``path`` if it is ``root`` or under it once resolved, and no part of it below ``root`` is a link; else
-    :class:`Unsafe`."""
-    path, root = Path(path), Path(root).resolve()
-    rel = path.resolve().relative_to(root) if path.resolve().is_relative_to(root) else None
-    if rel is None:
-        raise Unsafe(f"{path} lies outside {root}: refused")
-    probe = root
-    for part in rel.parts:
-        probe = probe / part
-        refuse_odd(probe)
-    return path
-
-
 def safe_label(value, what: str, warn=None, pattern: re.Pattern = _LABEL) -> str:
     """``value`` if it is a string fit to be part of a file name (``pattern``: letters, digits, ``_.,=+-``, no
     ``..``), else ``"unknown"`` with one ``warn(message)``."""
@@ -105,7 +90,7 @@ def open_regular(path: Path):
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
     except OSError as e:
-        if e.errno == 40:                                             # ELOOP: the last part is a link
+        if e.errno == errno.ELOOP:                                    # the last part is a link
             raise Unsafe(f"{path} is a symbolic link: refused") from None
         raise
     if not stat.S_ISREG(os.fstat(fd).st_mode):
@@ -132,16 +117,14 @@ def read_text(path: Path, cap: int = TEXT_CAP) -> str:
 
 
 def read_json(path: Path, cap: int = TEXT_CAP, kind: str | None = None):
-    """The JSON of ``path``: :class:`Corrupt` if it is not JSON, is nested too deep, holds a number that is not
-    finite or an integer past 64 bits, or (``kind``, a key of :data:`rovermarl.record.schemas.KINDS`) breaks that
-    kind's schema (:mod:`rovermarl.record.schemas`); the message names the file and the field."""
+    """The JSON of ``path``, checked by :func:`rovermarl.record.schemas.parse_json` (against the schema of ``kind``,
+    a key of :data:`~rovermarl.record.schemas.KINDS`, if given): :class:`Corrupt` naming the file and the field."""
     return _parsed(schemas.parse_json, read_bytes(path, cap), path, kind)
 
 
 def read_jsonl(path: Path, kind: str | None = None, cap: int = LINE_CAP, chunk: int = 1 << 20):
-    """Each line of an append-only JSON-lines log (``invocations.jsonl``), read ``chunk`` bytes at a time (the log
-    may be of any size; one line at most ``cap`` bytes), each checked as :func:`read_json` checks a file; blank
-    lines skipped."""
+    """Each non-blank line of a JSON-lines log of any size (``invocations.jsonl``), read ``chunk`` bytes at a time,
+    at most ``cap`` bytes a line, each checked as :func:`read_json` checks a file."""
     with open_regular(path) as f:
         rest, number = b"", 0
         while True:
@@ -159,9 +142,8 @@ def read_jsonl(path: Path, kind: str | None = None, cap: int = LINE_CAP, chunk: 
 
 
 def read_yaml(path: Path, cap: int = YAML_CAP, kind: str | None = None):
-    """The plain containers of the YAML of ``path`` (interpolations unresolved); :class:`Corrupt` for an alias,
-    anchor or tag (refused before anything is built: an alias bomb never expands), nesting too deep, anything
-    OmegaConf's loader refuses, numbers as :func:`read_json` refuses them, or a breach of ``kind``'s schema."""
+    """The plain containers of the YAML of ``path`` (interpolations unresolved), checked as :func:`read_json`
+    checks JSON (:func:`rovermarl.record.schemas.parse_yaml`: no alias, anchor or tag)."""
     return _parsed(schemas.parse_yaml, read_text(path, cap), path, kind)
 
 
@@ -191,10 +173,10 @@ class Spec:
 def load_npz(path: Path, specs: dict, required=(), max_bytes: int | None = None,
              stored: bool = False) -> dict[str, np.ndarray]:
     """The arrays of ``path`` (an ``.npz``), each checked against ``specs[name]`` (a :class:`Spec` or a tuple of
-    them; ``specs[ANY]`` for any other name) before it is read;
-    :class:`Corrupt` for a member outside ``specs``, a ``required`` one missing, or one that disagrees with its
-    spec or its zip header. ``max_bytes``: a cap on the arrays' total size; ``stored``: every member must be stored
-    uncompressed (as rovermarl writes a run's files and checkpoints), so no member is larger than the file."""
+    them; ``specs[ANY]`` for any other name) before it is read; :class:`Corrupt` for a member outside ``specs``, a
+    ``required`` one missing, or one that disagrees with its spec or its zip header. ``max_bytes``: a cap on the
+    arrays' total size; ``stored``: every member must be stored uncompressed (as rovermarl writes a run's files and
+    checkpoints), so no member is larger than the file."""
     with open_regular(path) as f:
         return _members(path, f, specs, required, max_bytes, stored)
 
@@ -318,15 +300,13 @@ class RunSize:
     def of(cls, config: dict | None, world=None) -> RunSize:
         """From a job's plain config (and its built world, which knows P), each number checked."""
         config = config if isinstance(config, dict) else {}
-        env = config.get("env") if isinstance(config.get("env"), dict) else {}
-        setup = config.get("setup") if isinstance(config.get("setup"), dict) else {}
-        coupling = setup.get("coupling")
+        generations = _count(config.get("generations"), 10**10)
         if world is not None:
-            return cls(_count(config.get("generations"), 10**10), world.n_rovers, world.n_params, world.episodes,
-                       world.steps, world.n_pois)
-        return cls(_count(config.get("generations"), 10**10), _count(env.get("n_rovers"), 1 << 12), None,
-                   _count(env.get("episodes"), 1 << 20), _count(env.get("steps"), 1 << 20),
-                   len(coupling) if isinstance(coupling, list) else None)
+            return cls(generations, world.n_rovers, world.n_params, world.episodes, world.steps, world.n_pois)
+        env = config.get("env") if isinstance(config.get("env"), dict) else {}
+        coupling = (config.get("setup") if isinstance(config.get("setup"), dict) else {}).get("coupling")
+        return cls(generations, _count(env.get("n_rovers"), 1 << 12), None, _count(env.get("episodes"), 1 << 20),
+                   _count(env.get("steps"), 1 << 20), len(coupling) if isinstance(coupling, list) else None)
 
     def curve(self) -> dict:
         """curve.npz: score (G+1,) and the declared series (G,) or (G, K), K at most max(N, 64)."""

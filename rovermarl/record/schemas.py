@@ -1,17 +1,14 @@
 """What a JSON or YAML file of a results dir may hold, checked before any of it is used (read through
-:mod:`rovermarl.record.safe_read`, the one reader):
+:mod:`rovermarl.record.safe_read`, the one reader; docs/FAULTS.md lists what is refused):
 
-- the parse: at most :data:`DEPTH` levels of nesting (a JSON nested 200,000 deep is one line, not a RecursionError);
-  no YAML alias, anchor or tag (refused from the event stream, before anything is built: an alias bomb never
-  expands); only finite numbers and integers within 64 bits (NaN, Infinity, ``1e400``, ``10**400`` refused);
-- a schema per file kind (:data:`KINDS`: ``summary``, ``run``, ``launch``, ``compute``, ``config``, ``hydra``,
-  ``overrides``): the types and ranges of the fields a reader uses (``env.steps``, ``episodes``, ``n_rovers``,
-  ``seeds``, ``k``, ``generations``, ...; a string or a list where a number belongs is refused); other fields pass
-  with the parse's checks only;
-- a config's interpolations: only plain references (``${policy.init_low}``, or a chain of them) to a value or to a
-  node free of interpolations, at most :data:`REFERENCES` of them, so resolving one cannot run a resolver or
-  multiply a node;
-  the schema checks the config as resolved.
+- the parse (:func:`parse_json`, :func:`parse_yaml`, :func:`checked`): at most :data:`DEPTH` levels of nesting, no
+  YAML alias, anchor or tag (refused from the event stream, before anything is built: an alias bomb never expands),
+  only finite numbers and integers within 64 bits;
+- a schema per file kind (:data:`KINDS`): the types and ranges of the fields a reader uses; other fields pass with
+  the parse's checks only;
+- a config's interpolations (:func:`resolved`): only plain references (``${policy.init_low}``, or a chain of them)
+  to a value or a node free of them, at most :data:`REFERENCES`, so resolving cannot run a resolver or multiply a
+  node; the schema checks the config as resolved.
 
 Each failure is :class:`Invalid`, one line naming the file and the field.
 """
