@@ -1,23 +1,9 @@
-"""``python -m rovermarl.analysis {export,claims,selectors,heldout,verify} ...``: compact results of a sweep, claims.
+"""``python -m rovermarl.analysis {export,claims,selectors,heldout,verify} ...`` (``--help`` describes each).
 
-- ``export SWEEP_DIR RESULTS_DIR [--generations G] [--no-fig6] [--trust-config]``: write the compact results of
-  every finished job, all or nothing (see :mod:`rovermarl.analysis.export`); the Fig. 6 re-run builds only the
-  classes of rovermarl's config groups from the sweep's config unless ``--trust-config``.
-- ``claims RESULTS_DIR [--trust-config]``: print the statistics of claims C1-C8 and write ``claims.md`` and
-  ``claims.json`` (see :mod:`rovermarl.analysis.claims`).
-- ``selectors RESULTS_DIR [--against METHOD] [--x evals] [--trust-config]``: the k-selector (or any method) comparison;
-  ``selectors.md`` and ``.json``; ``--x evals`` in team evaluations.
-- ``heldout merge SWEEP_DIR RESULTS_DIR``: held-out scores of recomputed runs into committed results
-  (:mod:`rovermarl.analysis.heldout`, ``launchers/heldout.sh``); ``heldout done JOB_DIR``: exit 0 if the job's
-  summary (read through :mod:`rovermarl.record.safe_read`) has them.
-- ``verify DIR [--trust-config]``: re-score every committed final team on its run's initial conditions and
-  held-out ones; one line per job, exit 1 on any difference, 2 if a job's files or config were refused (its line
-  on stderr; the other jobs are verified) (:mod:`rovermarl.analysis.verify`).
-
-The one-off studies' report generators live beside their launchers, outside the package:
-``python studies/<name>/report.py ...`` (docs/ARCHITECTURE.md, Studies).
-
-Bad input exits with status 2 and one line on stderr.
+Exit status: 2 with one line on stderr for bad input; ``verify`` exits 1 when a team does not re-score (2 if a job's
+files or config were refused, after verifying the other jobs); ``heldout done JOB_DIR`` exits 0 if the job's summary
+has held-out scores. The studies' report generators live beside their launchers: ``python studies/<name>/report.py``
+(docs/ARCHITECTURE.md, Studies).
 """
 
 from __future__ import annotations
@@ -75,20 +61,17 @@ def main(argv=None) -> None:
     with one_line_errors(PROG):     # a result, sweep or config refused, or a file error: one line, exit 2
         if args.command == "export":
             from rovermarl.analysis.export import export
-            export(args.sweep, args.out, args.generations, fig6=args.fig6,
-                   log=_say, trust=args.trust)
+            export(args.sweep, args.out, args.generations, fig6=args.fig6, log=_say, trust=args.trust)
         elif args.command == "claims":
             from rovermarl.analysis.claims import claims
-            text, _ = claims(args.results, args.trust)
-            print(text, end="")
+            print(claims(args.results, args.trust)[0], end="")
         elif args.command == "heldout":
             _heldout(args.action, args.paths)
         elif args.command == "verify":
             _verify(args.results, args.trust)
         else:
             from rovermarl.analysis.claims import selectors
-            text, _ = selectors(args.results, args.against, args.x, args.trust)
-            print(text, end="")
+            print(selectors(args.results, args.against, args.x, args.trust)[0], end="")
 
 
 def _verify(path: Path, trust: bool) -> None:
@@ -111,8 +94,9 @@ def _verify(path: Path, trust: bool) -> None:
 def _heldout(action: str, paths: list[Path]) -> None:
     from rovermarl.analysis import heldout
 
-    if len(paths) != (2 if action == "merge" else 1):
-        fail(PROG, f"heldout {action} takes {2 if action == 'merge' else 1} path(s)")
+    n = 2 if action == "merge" else 1
+    if len(paths) != n:
+        fail(PROG, f"heldout {action} takes {n} path(s)")
     if action == "merge":
         with beneath(paths[1], create=False):                           # a job dir swapped for a link: refused
             heldout.merge(paths[0], paths[1], log=_say)

@@ -1,16 +1,10 @@
-"""The statistics behind the paper's claims C1-C8, from exported results (:mod:`rovermarl.analysis.results`).
+"""The statistics behind the paper's claims C1-C8 and the selectors report, from exported results
+(:mod:`rovermarl.analysis.results`); ``docs/REPRODUCTION.md`` quotes ``claims.md`` verbatim (a test checks it).
 
-``python -m rovermarl.analysis claims RESULTS_DIR`` prints them as markdown and writes ``claims.md`` and
-``claims.json`` into RESULTS_DIR. ``docs/REPRODUCTION.md`` quotes ``claims.md`` verbatim (a test checks it).
-
-Every statistic is over the 16 runs (seeds) of a job: medians of the score at fixed budgets with percentile-
-bootstrap 95% CIs; the runs reaching a level as a count with a Wilson 95% CI; the median time (generations) to
-a level, censored at the budget (a run that never gets there counts as ``never``); two-sided Mann-Whitney U
-between methods.
-
-The report needs every job of the paper study (:data:`REQUIRED`, what ``launchers/paper.sh`` runs); a results dir
-missing any of them is refused in one line naming the missing setups and jobs (:class:`ResultsError`; the
-``selectors`` report takes any subset).
+Every statistic is over the runs (seeds) of a job: medians of the score at fixed budgets with percentile-bootstrap
+95% CIs; the runs reaching a level as a count with a Wilson 95% CI; the median time to a level, censored at the
+budget (a run that never gets there counts as ``never``); two-sided Mann-Whitney U between methods. The claims
+report needs every job of :data:`REQUIRED` (what ``launchers/paper.sh`` runs); ``selectors`` takes any subset.
 """
 
 from __future__ import annotations
@@ -77,8 +71,7 @@ class Claims:
         return sorted(names, key=lambda s: (setup_rank(s), s))
 
     def levels(self, setup: str) -> tuple[float, float]:
-        """(optimum, threshold) of a setup: the world's maximum return, and the paper's threshold (else the
-        optimum)."""
+        """(optimum, threshold) of a setup: the world's maximum return, and the paper's threshold (else that)."""
         best = optimum(self.methods(setup)[0].config(), self.trust)
         return best, THRESHOLDS.get(setup, best)
 
@@ -89,11 +82,10 @@ class Claims:
         Mann-Whitney U of each method's final scores and times against that method's."""
         opt, thr = self.levels(setup)
         heldout = all("heldout_score" in r.summary for r in self.methods(setup))
-        head = [f"median score @{b:,}" for b in self.budgets] + (["median held-out score"] if heldout else [])
-        head += [f"runs reaching {opt:g}"]
-        head += [f"runs reaching {thr:g}"] if thr != opt else []
-        head += [f"median {self.unit} to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
         base = self.get(setup, against) if against else None
+        head = [f"median score @{b:,}" for b in self.budgets] + (["median held-out score"] if heldout else [])
+        head += [f"runs reaching {level:g}" for level in dict.fromkeys((opt, thr))]
+        head += [f"median {self.unit} to {thr:g}", f"1/4, 1/2, 3/4 of runs at {thr:g} by"]
         head += [f"final score vs {against}", f"{self.unit} to {thr:g} vs {against}"] if base else []
         self.lines += [f"| {setup}: method | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
         rows = {}
@@ -101,22 +93,19 @@ class Claims:
             at = r.curves.at(self.generation_at(r, self.budgets))
             med = [stats.median_ci(at[:, i]) for i in range(len(self.budgets))]
             n = len(r.curves.seeds)
-            reach_opt = stats.wilson(int(np.isfinite(r.curves.first(opt)).sum()), n)
+            reach = {level: stats.wilson(int(np.isfinite(r.curves.first(level)).sum()), n) for level in (opt, thr)}
             times = self.first(r, thr)
-            reach_thr = stats.wilson(int(np.isfinite(times).sum()), n)
             t = stats.median_ci(times)
             held = stats.median_ci(list(r.summary["heldout_score"].values())) if heldout else None
-            cells = [m.fmt(3) for m in med] + ([held.fmt(3)] if held else []) + [_count(reach_opt, n)]
-            cells += [_count(reach_thr, n)] if thr != opt else []
-            cells += [t.fmt(None), ", ".join("never" if np.isinf(q) else f"{q:,.0f}"
-                                             for q in quartile_times(times))]
+            cells = [m.fmt(3) for m in med] + ([held.fmt(3)] if held else []) + [_count(w, n) for w in reach.values()]
+            cells += [t.fmt(None), ", ".join("never" if np.isinf(q) else f"{q:,.0f}" for q in quartile_times(times))]
             if base is not None:
                 tests = [stats.mann_whitney(self.values(r, w), self.values(base, w)) for w in ("final", f"time:{thr}")]
                 cells += ["-" if r is base else f"p{stats.format_p(x.p)}, P(a>b)={x.effect:.2f}" for x in tests]
             self.lines.append(f"| {r.label} | " + " | ".join(cells) + " |")
             rows[r.label] = {"median_score": {str(b): m.as_dict() for b, m in zip(self.budgets, med, strict=True)},
-                             f"reach_{opt:g}": reach_opt.as_dict() | {"runs": n},
-                             f"reach_{thr:g}": reach_thr.as_dict() | {"runs": n}, f"time_to_{thr:g}": t.as_dict()}
+                             **{f"reach_{level:g}": w.as_dict() | {"runs": n} for level, w in reach.items()},
+                             f"time_to_{thr:g}": t.as_dict()}
             if held:
                 rows[r.label]["median_heldout_score"] = held.as_dict()
         self.lines.append("")
@@ -127,8 +116,7 @@ class Claims:
         ra, rb = self.get(setup, a), self.get(setup, b)
         if ra is None or rb is None:
             return None
-        xa, xb = self.values(ra, what), self.values(rb, what)
-        test = stats.mann_whitney(xa, xb)
+        test = stats.mann_whitney(self.values(ra, what), self.values(rb, what))
         self.lines.append(f"- {setup}, {_what(what)}: {a} vs {b}: {test.fmt()}")
         self.data.setdefault(claim, {}).setdefault("tests", []).append(
             {"setup": setup, "a": a, "b": b, "what": what, **test.as_dict()})
@@ -216,8 +204,7 @@ class Claims:
                 n = sum(c[kind]["n"] for c in coupling.values())
                 row.append(f"{share.fmt(2)} ({anyf:.2f}), n={n:,}" if share else "none")
                 per_kind[kind] = {"share": share.as_dict() if share else None, "any": anyf, "n": n}
-            accepted = [_accepted_share(c) for c in coupling.values()]
-            accepted = [a for a in accepted if a is not None]
+            accepted = [a for c in coupling.values() if (a := _accepted_share(c)) is not None]
             rejected = [c["rejected"]["share"] for c in coupling.values() if c["rejected"]["n"]]
             test = stats.mann_whitney(accepted, rejected) if accepted and rejected else None
             row.append(test.fmt() if test else "-")
@@ -290,14 +277,23 @@ class Claims:
         self.c8()
         self.plateau()
         self.compute()
-        return "\n".join(self.lines).rstrip() + "\n", self.data
+        return self.text(), self.data
+
+    def text(self) -> str:
+        return "\n".join(self.lines).rstrip() + "\n"
+
+    def write(self, path: Path, name: str) -> tuple[str, dict]:
+        """Write the report as ``name.md`` and its numbers as ``name.json`` into the results dir ``path``."""
+        text = self.text()
+        with atomic_open(Path(path) / f"{name}.md", "w") as f:
+            f.write(text)
+        write_json(Path(path) / f"{name}.json", json.loads(json.dumps(self.data, default=float)))
+        return text, self.data
 
 
 def _accepted_share(c: dict) -> float | None:
     n = c["improved"]["n"] + c["neutral"]["n"]
-    if not n:
-        return None
-    return sum((c[k]["share"] or 0.0) * c[k]["n"] for k in ("improved", "neutral")) / n
+    return sum((c[k]["share"] or 0.0) * c[k]["n"] for k in ("improved", "neutral")) / n if n else None
 
 
 def _count(est: stats.Estimate, n: int) -> str:
@@ -321,17 +317,11 @@ def selectors(path: Path, against: str = "adaptive", x: str = "generation", trus
         c.lines += [f"### {setup}", ""]
         c.table(setup, against)
     c.compute()
-    text = "\n".join(c.lines).rstrip() + "\n"
-    with atomic_open(Path(path) / "selectors.md", "w") as f:
-        f.write(text)
-    write_json(Path(path) / "selectors.json", json.loads(json.dumps(c.data, default=float)))
-    return text, c.data
+    return c.write(path, "selectors")
 
 
 def claims(path: Path, trust: bool = False) -> tuple[str, dict]:
     """Compute the claims report of the results dir ``path``; writes ``claims.md`` and ``claims.json`` there."""
-    text, data = Claims(load(path), trust=trust).run()
-    with atomic_open(Path(path) / "claims.md", "w") as f:
-        f.write(text)
-    write_json(Path(path) / "claims.json", json.loads(json.dumps(data, default=float)))
-    return text, data
+    c = Claims(load(path), trust=trust)
+    c.run()
+    return c.write(path, "claims")

@@ -1,10 +1,5 @@
-"""Score curves: the one reader of a run's ``curve.npz`` and of an exported job's ``curves.npz``.
-
-A run dir of a sweep holds ``curve.npz`` with the parent score after every generation (G+1,) and, for a bandit,
-the arm probabilities (G, K). An exported job dir (:mod:`rovermarl.analysis.results`) holds ``curves.npz``: every
-run's exact curve as change points (a parent score never falls, so these few points are lossless), the scores and
-bandit probabilities on a log grid.
-"""
+"""Score curves: the one reader of a sweep run's ``curve.npz`` (the parent score after every generation (G+1,); a
+bandit's arm probabilities (G, K)) and of an exported job's ``curves.npz`` (:mod:`rovermarl.analysis.results`)."""
 
 from __future__ import annotations
 
@@ -108,9 +103,8 @@ def read_run_curve(run_dir: Path, size: RunSize | None = None) -> tuple[np.ndarr
     """(score (G+1,), probs (G, K) or None for fixed k) of a sweep's run dir, as float64 (``size``: what the run's
     config implies, checked before anything is read)."""
     curve = read_run_arrays(run_dir, size)
-    score = np.asarray(curve["score"], dtype=np.float64)
     probs = np.asarray(curve["probs"], dtype=np.float64) if "probs" in curve else None
-    return score, probs
+    return np.asarray(curve["score"], dtype=np.float64), probs
 
 
 def read_run_arrays(run_dir: Path, size: RunSize | None = None) -> dict[str, np.ndarray]:

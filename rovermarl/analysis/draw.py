@@ -16,7 +16,6 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 
-from rovermarl.analysis.stamp import FORMATS  # noqa: F401  (the figures' default formats)
 from rovermarl.env import World
 from rovermarl.palette import POI_BY_COUPLING, poi_hex, rover_hex
 from rovermarl.record.outputs import atomic_open

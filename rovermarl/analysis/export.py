@@ -1,9 +1,6 @@
-"""Export the compact results of a sweep (``python -m rovermarl.analysis export SWEEP_DIR RESULTS_DIR``): the
-format is described in :mod:`rovermarl.analysis.results`.
-
-An export is all or nothing: it writes into a hidden dir next to ``RESULTS_DIR`` and moves the result into place
-only when everything succeeded (:func:`staged`), so a failure or a refused config leaves ``RESULTS_DIR`` as it was.
-"""
+"""Export the compact results of a sweep (``python -m rovermarl.analysis export SWEEP_DIR RESULTS_DIR``; the format
+is in :mod:`rovermarl.analysis.results`). All or nothing: it writes into a hidden dir beside ``RESULTS_DIR`` and
+moves it into place only when everything succeeded (:func:`staged`)."""
 
 from __future__ import annotations
 
@@ -31,15 +28,13 @@ def coupling(curve, episodes: int) -> dict | None:
     (``share``), and the fraction of updates with at least one such episode (``any``). None without data."""
     if "switched" not in curve:
         return None
-    k, acc, sw = curve["k"], curve["accepted"], curve["switched"].astype(np.float64)
-    parent_before = curve["score"][:-1]
-    single = (k == 1) & (sw >= 0)
+    acc, sw = curve["accepted"], curve["switched"].astype(np.float64)
+    single = (curve["k"] == 1) & (sw >= 0)
     if not single.any():
         return None
-    rose = curve["child_score"] > parent_before
+    rose = curve["child_score"] > curve["score"][:-1]                   # than the parent's
     out = {}
-    masks = (single & acc & rose, single & acc & ~rose, single & ~acc)
-    for kind, mask in zip(COUPLING_KINDS, masks, strict=True):
+    for kind, mask in zip(COUPLING_KINDS, (single & acc & rose, single & acc & ~rose, single & ~acc), strict=True):
         n = int(mask.sum())
         out[kind] = {"n": n, "share": float(sw[mask].mean() / episodes) if n else None,
                      "any": float((sw[mask] > 0).mean()) if n else None}
@@ -56,15 +51,6 @@ def compute_of(job: Job) -> dict:
         launches = [read_json(job.path / "summary.json", kind="summary")]
     return {"launches": len(launches), "wall_time_s": sum(x.get("wall_time_s", 0.0) for x in launches),
             "team_evals": sum(x.get("team_evals", 0) for x in launches)}
-
-
-def with_own_steps(compute: dict, summary: dict, world, generations: int) -> dict:
-    """``compute`` (:func:`compute_of`) with its agent-steps: the team evaluations' (``episodes x steps x
-    n_rovers`` each), plus ``own_agent_steps``, those a learner took itself over ``generations`` (all runs') at the
-    summary's ``own_agent_steps_per_generation`` (PPO's training steps; 0 for the others)."""
-    own = int(summary.get("own_agent_steps_per_generation", 0)) * generations
-    scored = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
-    return {**compute, "own_agent_steps": own, "agent_steps": scored + own}
 
 
 def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, trust: bool = False) -> dict:
@@ -85,14 +71,14 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
     if world is None:
         raise ResultsError(f"{job.path}: cannot build the world from its config")
     episodes = world.episodes
-    couplings = {}
-    for r in runs:
-        c = coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)
-        if c is not None:
-            couplings[str(r.seed)] = c
+    couplings = {str(r.seed): c for r in runs
+                 if (c := coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)) is not None}
     summary = read_json(job.path / "summary.json", kind="summary") if job.finished else {}
     _same_generation(job, summary, runs)
-    compute = with_own_steps(compute_of(job), summary, world, curves.generations * len(runs))
+    compute = compute_of(job)      # agent-steps: the team evaluations', plus those a learner took itself (PPO's)
+    own = int(summary.get("own_agent_steps_per_generation", 0)) * curves.generations * len(runs)
+    scored = compute["team_evals"] * world.episodes * world.steps * world.n_rovers
+    compute |= {"own_agent_steps": own, "agent_steps": scored + own}
     summary.update({"label": label, "setup": job.setup, "generations": curves.generations,
                     "episodes": episodes, "source": job.name, "compute": compute})
     if couplings:
@@ -113,9 +99,8 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
 
 
 def _same_generation(job: Job, summary: dict, runs) -> None:
-    """:class:`ResultsError` unless ``summary`` (the job's summary.json) is of the same runs as the curves read: the
-    same seeds, each ending at the final score it records (a relaunch that is rewriting the job's runs pairs an old
-    summary with new curves)."""
+    """:class:`ResultsError` unless the job's ``summary`` is of the runs read: the same seeds, each ending at the
+    final score it records (a relaunch rewriting the job's runs pairs an old summary with new curves)."""
     final = summary.get("final_score")
     if not isinstance(final, dict):
         return
@@ -170,8 +155,7 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
     rerun = fig6_job(jobs) if fig6 else None
     if rerun is not None and not trust:
         check_targets(rerun.config, str(rerun.path))
-    totals = {"jobs": _kept_compute(out, {j.name for j in jobs}), "team_evals": 0, "own_agent_steps": 0,
-              "agent_steps": 0, "wall_time_s": 0.0}
+    totals = {"jobs": _kept_compute(out, {j.name for j in jobs})}
     named = {}
     for setup in dict.fromkeys(j.setup for j in jobs):                  # labels tell methods apart within a setup
         group = [j for j in jobs if j.setup == setup]
@@ -182,12 +166,11 @@ def export(sweep: Path, out: Path, generations: int | None = None, grid_points: 
             summary = export_job(job, label, stage / job.name, grid_points, trust)
             totals["jobs"][job.name] = summary["compute"]
             log(f"exported {job.name} ({len(job.runs)} runs) as {label!r}")
-        for key in ("team_evals", "own_agent_steps", "agent_steps", "wall_time_s"):   # every job of out: they add up
-            totals[key] = sum(c.get(key, 0) for c in totals["jobs"].values())
+        totals |= {key: sum(c.get(key, 0) for c in totals["jobs"].values())     # every job of out: they add up
+                   for key in ("team_evals", "own_agent_steps", "agent_steps", "wall_time_s")}
         write_json(stage / "compute.json", totals)
         if rerun is not None:
-            info = export_fig6(rerun, stage / "fig6.npz", trust=trust)
-            log(f"fig6: {info}")
+            log(f"fig6: {export_fig6(rerun, stage / 'fig6.npz', trust=trust)}")
     for note in notes:
         log(f"note: {note}")
     return totals
@@ -264,36 +247,28 @@ FIG6_LEVELS = (4.0 + 1 / 16, 5.0)  # the first update past the all-solo level 4,
 def _crossings(generation: np.ndarray, score: np.ndarray, levels=FIG6_LEVELS) -> list[int]:
     """Indices of the behaviour entries where the score first reaches each level (the 'after' entry), in
     increasing order, each once (one update can cross several levels)."""
-    out = set()
-    for level in levels:
-        hit = np.flatnonzero((score[1:] >= level) & (score[:-1] < level))
-        if hit.size:
-            out.add(int(hit[0]) + 1)
-    return sorted(out)
+    hits = (np.flatnonzero((score[1:] >= level) & (score[:-1] < level)) for level in levels)
+    return sorted({int(hit[0]) + 1 for hit in hits if hit.size})
 
 
 def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_LEVELS, trust: bool = False) -> dict:
     """The data of a Fig. 6-style figure for one run of ``job`` (default: the best final score, earliest first):
     its score change points, the occupancy of one episode over generations, and the team's trajectories just
-    before and after the updates that first lift the score to each of ``levels`` (by default: past 4, the
-    all-solo level, in one more episode; and to 5, a duo POI in every episode), with the rover each update changed
-    (found by re-running the run, which must reproduce the recorded scores)."""
-    runs = [r for r in job.runs if (r.path / "behaviour.npz").is_file() and (r.path / "occupancy.npz").is_file()]
+    before and after the updates that first lift the score to each of ``levels`` (:data:`FIG6_LEVELS`), with the
+    rover each update changed (found by re-running the run, which must reproduce the recorded scores)."""
+    runs = [r for r in job.runs if r.has("behaviour.npz") and r.has("occupancy.npz")]
     if not runs:
         raise ResultsError(f"{job.path}: no run recorded behaviour.npz and occupancy.npz")
     curves = Curves.from_scores([r.seed for r in runs], [r.score for r in runs])
-    if run_seed is None:
-        best = max(r.score[-1] for r in runs)
-        first = curves.first(best)
-        run = runs[int(np.argmin(first))]
+    if run_seed is None:                                               # the best final score, reached first
+        run = runs[int(np.argmin(curves.first(max(r.score[-1] for r in runs))))]
     else:
         run = next((r for r in runs if r.seed == run_seed), None)
         if run is None:
             raise ResultsError(f"{job.path}: no recorded run with seed {run_seed}")
-    size = job.size
-    b = load_npz(run.path / "behaviour.npz", size.behaviour(), ("generation", "score", "xy"), stored=True)
+    b = load_npz(run.path / "behaviour.npz", job.size.behaviour(), ("generation", "score", "xy"), stored=True)
     generation, score, xy = b["generation"], b["score"], b["xy"]
-    o = load_npz(run.path / "occupancy.npz", size.occupancy(), ("generation", "count"), stored=True)
+    o = load_npz(run.path / "occupancy.npz", job.size.occupancy(), ("generation", "count"), stored=True)
     occ_generation, count = o["generation"], o["count"]
     after = _crossings(generation, score, levels)
     events = [(i - 1, i) for i in after]        # the 'before' entry is the parent team of the 'after' generation
@@ -303,10 +278,8 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
         if parent_score != score[i] or not accepted:
             raise ResultsError(f"{run.path}: re-running seed {run.seed} does not reproduce generation "
                                f"{int(generation[i])}")
-    mutated = [m for m, _, _ in replayed]
-    final_count = count[-1]                                              # (E, P): pick an episode that ends best
     world = job.world(trust)
-    returns = (final_count >= np.asarray(world.coupling)) @ np.asarray(world.value)
+    returns = (count[-1] >= np.asarray(world.coupling)) @ np.asarray(world.value)   # (E,): show one ending best
     best_eps = np.flatnonzero(returns == returns.max())
     changes = [(np.diff(count[:, e], axis=0) != 0).any(axis=1).sum() for e in best_eps]
     episode = int(best_eps[int(np.argmax(changes))])
@@ -317,7 +290,7 @@ def export_fig6(job: Job, path: Path, run_seed: int | None = None, levels=FIG6_L
               "episode": np.int64(episode), "occupancy_generation": occ_generation,
               "occupancy": count[:, episode], "event_generation": generation[idx].reshape(-1, 2),
               "event_score": score[idx].reshape(-1, 2), "event_xy": xy[idx].reshape(len(events), 2, *xy.shape[1:]),
-              "event_mutated": np.array([m[0] if len(m) == 1 else -1 for m in mutated], dtype=np.int64),
+              "event_mutated": np.array([m[0] if len(m) == 1 else -1 for m, _, _ in replayed], dtype=np.int64),
               "coupling": np.asarray(world.coupling), "value": np.asarray(world.value)}
     with atomic_open(path) as f:
         np.savez_compressed(f, **arrays)

@@ -49,12 +49,10 @@ def fig_fig6(path: Path, job: Job, world: World, xscale: str = "linear") -> tupl
     gens = np.append(d["occupancy_generation"], last)
     occ = d["occupancy"]                                                  # (M, P)
     for j in range(occ.shape[1]):
-        for n, colour in OCCUPANCY.items():
-            on = occ[:, j] == n
+        shown = [(occ[:, j] == n, colour) for n, colour in OCCUPANCY.items()] + [(occ[:, j] > max(OCCUPANCY), "k")]
+        for on, colour in shown:
             spans = [(gens[i], gens[i + 1] - gens[i]) for i in np.flatnonzero(on)]
             ax_occ.broken_barh(spans, (j - 0.4, 0.8), color=colour)
-        many = occ[:, j] > max(OCCUPANCY)
-        ax_occ.broken_barh([(gens[i], gens[i + 1] - gens[i]) for i in np.flatnonzero(many)], (j - 0.4, 0.8), color="k")
     ax_occ.set(ylabel="POI (coupling)", xlabel="generation", yticks=range(occ.shape[1]),
                ylim=(-0.6, occ.shape[1] - 0.4))
     ax_occ.set_yticklabels([f"{j} ({c})" for j, c in enumerate(d["coupling"])], fontsize=7)

@@ -1,18 +1,9 @@
 """Every figure of a sweep, a job dir or exported results: ``python -m rovermarl.plot`` and the end-of-sweep callback.
 
-:func:`plot_sweep` writes into ``figures/``:
-
-- ``curves_<setup>``: top, the median score of every method; bottom, every run's curve, one panel per method, with
-  dotted lines where 1/4, 1/2 and 3/4 of the runs first reach the threshold (Figs. 4, 5, 8); strict jobs with a
-  soft counterpart are left to ``soft_vs_strict``;
-- ``soft_vs_strict_<setup>``: medians with soft (solid) and strict (dashed) selection; strict runs below (Fig. 7);
-- ``bandit_<setup>``: the bandit's mean probability of each k over generations, one panel per adaptive job;
-- ``update_<setup>``: one run's trajectories before and after an accepted update that raised the score (Fig. 6);
-- ``occupancy_<setup>``: that run's score and how many rovers observe each POI over generations (Fig. 6);
-- ``fig6_duo``, ``switched_k1``: from exported results, the C8 figures of :mod:`rovermarl.analysis.fig6`;
-- ``index.json``: every figure with its files, methods and panel count, the jobs read and the notes.
-
-Medians and thresholds use the full curves; lines are drawn with at most
+:func:`plot_sweep` writes ``figures/<kind>_<setup>.<format>``: ``curves``, ``soft_vs_strict``, ``bandit``, ``update``
+and ``occupancy`` (docs/GUIDE.md, Figures); from exported results also ``fig6_duo`` and ``switched_k1``
+(:mod:`rovermarl.analysis.fig6`); and ``index.json``: every figure with its files, methods and panel count, the jobs
+read and the notes. Medians and thresholds use the full curves; lines are drawn with at most
 :data:`~rovermarl.analysis.draw.MAX_POINTS` points. Figures are written atomically.
 """
 
@@ -26,11 +17,11 @@ from matplotlib.figure import Figure
 
 from rovermarl.analysis.behaviour_figures import fig_occupancy, fig_update, pick_run, pick_update
 from rovermarl.analysis.curve_figures import XLABEL, fig_bandit, fig_curves, fig_soft_vs_strict
-from rovermarl.analysis.draw import FORMATS, save
+from rovermarl.analysis.draw import save
 from rovermarl.analysis.fig6 import fig_fig6, fig_switched
 from rovermarl.analysis.levels import threshold_for
 from rovermarl.analysis.results import load
-from rovermarl.analysis.stamp import inputs_stamp, options
+from rovermarl.analysis.stamp import FORMATS, inputs_stamp, options
 from rovermarl.analysis.sweep import (
     Job,
     RunCurve,
@@ -117,15 +108,12 @@ def plot_sweep(path: Path, out: Path | None = None, thresholds: dict[str, float]
                formats: Sequence[str] = FORMATS, update_run: Path | None = None, update_gen: int | None = None,
                log=None, xscale: str = "linear", x: str = "auto", trust: bool = False,
                only: Sequence[Path] | None = None) -> dict:
-    """Draw every figure of the sweep (or job) dir ``path`` into ``out`` (default ``path/figures``).
+    """Draw every figure of the sweep, job or results dir ``path`` into ``out`` (default ``path/figures``); returns
+    the index (also written as ``index.json``); :class:`SweepError` on unusable input.
 
-    ``path`` may also be a results dir of :mod:`rovermarl.analysis.results`; it adds the Fig. 6 and C8
-    figures of :mod:`rovermarl.analysis.fig6`. ``xscale="log"`` puts generations on a log axis (0 included). ``x``:
-    the score curves' x-axis, ``generation``, ``evals`` (team evaluations) or ``auto`` (evaluations when a setup's
-    jobs spend different numbers per generation). ``trust``: build world plug-ins named by the jobs' configs (their
-    modules run code; the end-of-sweep callback trusts its own jobs, ``only`` those the launch ran).
-
-    Returns the index (also written as ``index.json``). Raises :class:`SweepError` on unusable input.
+    ``xscale="log"``: generations on a log axis (0 included). ``x``: the score curves' x-axis, ``generation``,
+    ``evals`` or ``auto`` (:func:`~rovermarl.analysis.curve_figures.x_axis`). ``trust``: build world plug-ins the
+    jobs' configs name (their modules run code; the end-of-sweep callback trusts its own jobs, ``only`` those it ran).
     """
     path = check_dir(path)
     out = Path(out) if out is not None else path / "figures"

@@ -1,11 +1,9 @@
 """Held-out scores and final teams for compact results committed before those features (issues 33 and 43).
 
-Compact results exported before issue 43 hold no final teams, so ``launchers/heldout.sh`` recomputes each job's
-runs (a run is a pure function of its config and seed) into a sweep dir, and :func:`merge` adds each run's held-out
-score to the job's committed ``summary.json`` (``heldout_score`` per seed, ``median_heldout_score``) and every run's
-final team as ``genomes.npz`` (:func:`rovermarl.analysis.export.final_teams`), after checking that every recomputed
-run ends at the committed final score, bit for bit: the curves do not change, only the held-out column and the
-teams are added. ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR``.
+``launchers/heldout.sh`` recomputes each job's runs (a run is a pure function of its config and seed) into a sweep
+dir; ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR`` (:func:`merge`) then adds each run's
+held-out score and final team to the committed job, once every recomputed run ends at the committed final score, bit
+for bit: the curves do not change.
 """
 
 from __future__ import annotations

@@ -26,8 +26,7 @@ def setup_rank(setup: str) -> int:
 
 
 def threshold_for(setup: str, thresholds: Mapping[str, float] | None = None) -> float | None:
-    """A setup's threshold: its own from ``thresholds``, else ``thresholds['*']``, else :data:`THRESHOLDS`, else
-    None."""
+    """A setup's threshold: its own from ``thresholds``, else ``thresholds['*']``, else :data:`THRESHOLDS`, or None."""
     thresholds = thresholds or {}
     return thresholds.get(setup, thresholds.get("*", THRESHOLDS.get(setup)))
 
@@ -42,8 +41,5 @@ def quartile_times(times, quartiles: Iterable[float] = QUARTILES) -> list[float]
     """For each q, the ``ceil(q n)``-th smallest of the ``n`` runs' first times at a level (``inf``: never);
     ``inf`` if fewer runs ever got there."""
     t = np.sort(np.asarray(times, dtype=np.float64))
-    out = []
-    for q in quartiles:
-        m = max(1, math.ceil(q * len(t) - 1e-9))
-        out.append(float(t[m - 1]) if m <= len(t) else math.inf)
-    return out
+    ranks = [max(1, math.ceil(q * len(t) - 1e-9)) for q in quartiles]
+    return [float(t[m - 1]) if m <= len(t) else math.inf for m in ranks]

@@ -1,7 +1,5 @@
-"""The one place where the analysis re-runs a run: to find which rover an update mutated (the Fig. 6 data).
-
-This module alone drives the learner; nothing else in :mod:`rovermarl.analysis` imports it.
-"""
+"""The one place where the analysis re-runs a run: to find which rover an update mutated (the Fig. 6 data). This
+module alone drives the learner; nothing else in :mod:`rovermarl.analysis` imports it."""
 
 from __future__ import annotations
 
@@ -19,9 +17,8 @@ def mutated_rovers(config: dict, seed: int, generations_after: Sequence[int], so
     """Re-run seed ``seed`` of the job with the composed ``config`` from scratch. For each generation g of
     ``generations_after`` (increasing): the rovers whose genome g changed in the parent team (int64 indices), the
     parent score after g, and whether g's child was accepted (for the caller to check against the recording).
-    Unless ``trust``, ``config`` (read from ``source``) is first checked by
-    :func:`~rovermarl.runner.trust.check_targets`: a ``_target_`` that is not a class of the config group at whose
-    node it sits is refused before anything is built."""
+    Unless ``trust``, ``config`` (read from ``source``) must pass :func:`~rovermarl.runner.trust.check_targets`
+    (only classes of the config group at whose node they sit) before anything is built."""
     if not trust:
         check_targets(config, source)
     replay, out = Run(OmegaConf.create(config), seed), []

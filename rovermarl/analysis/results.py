@@ -8,11 +8,9 @@ the claims and figures need, in a few MB, with the same job-dir layout::
     RESULTS_DIR/<job>/config.yaml    the job's composed config
     RESULTS_DIR/<job>/curves.npz     seed (R,); generations (); grid (M,) log-spaced generations, score (R, M) there;
                                      the exact curves as change points: step_run (S,), step_generation (S,),
-                                     step_score (S,) (lossless for any curve; few for a parent score, which never
-                                     falls);
+                                     step_score (S,) (lossless; few, as a parent score never falls);
                                      probs (R, M, K) float32 on the grid (bandit jobs only)
-    RESULTS_DIR/fig6.npz             one duo k=1 run's data for the Fig. 6-style figure (see
-                                     :func:`rovermarl.analysis.export.export_fig6`)
+    RESULTS_DIR/fig6.npz             one duo k=1 run's Fig. 6 data (:func:`rovermarl.analysis.export.export_fig6`)
     RESULTS_DIR/compute.json         team evaluations, agent-steps (theirs, and a learner's own: PPO's training steps)
                                      and wall time of the whole sweep
 """

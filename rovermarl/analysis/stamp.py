@@ -27,9 +27,7 @@ def current_index(path: Path, out: Path | None = None, **kwargs) -> dict | None:
     the drawing options ``kwargs`` (:func:`options`), else None: then they must be drawn."""
     out = Path(out) if out is not None else Path(path) / "figures"
     stamp = inputs_stamp(path, out, **options(**kwargs))
-    if not up_to_date(out, stamp):
-        return None
-    return read_json(out / "index.json")
+    return read_json(out / "index.json") if up_to_date(out, stamp) else None
 
 
 def inputs_stamp(path: Path, out: Path, **options) -> str:

@@ -1,15 +1,13 @@
 """The statistics of the claims reports: bootstrap CIs of medians (seeded), exact order-statistic CIs of medians,
-interquartile means, Wilson CIs of counts, Mann-Whitney U and Holm's adjustment (statsmodels).
+interquartile means, Wilson CIs of counts, Mann-Whitney U and Holm's adjustment (statsmodels). Deterministic.
 
-Times to a level are censored at the budget: a run that never reaches the level counts as ``inf``, which
-ranks after every reached time (Mann-Whitney) and makes a median ``inf`` when half the runs never got there.
-Every function is deterministic (bootstrap resamples come from a fixed seed).
+Times to a level are censored at the budget: a run that never reaches it counts as ``inf``, which ranks after every
+reached time (Mann-Whitney) and makes a median ``inf`` when half the runs never got there.
 
-The bootstrap is numpy's resampling with a fixed seed, not ``scipy.stats.bootstrap``: scipy's percentile method
-interpolates between resampled medians (tried on results/baselines: the CCEA row's ``4 [3.97, 4]`` became
-``4 [3.97, 4.01]``), where ours takes the ``inverted_cdf`` quantile, always a resampled value; and it has no way to
-leave out the resamples whose ratio is undefined (both medians censored), so ``ratio_ci`` would print ``[nan, nan]``
-where it prints ``[0.739, never]`` in results/paper/claims.md.
+Not ``scipy.stats.bootstrap``: its percentile method interpolates between resampled medians (on results/baselines
+the CCEA row's ``4 [3.97, 4]`` became ``4 [3.97, 4.01]``; ours takes the ``inverted_cdf`` quantile, a resampled
+value), and it cannot leave out resamples whose ratio is undefined (both medians censored), so ``ratio_ci`` would
+print ``[nan, nan]`` where it prints ``[0.739, never]`` in results/paper/claims.md.
 """
 
 from __future__ import annotations
@@ -69,11 +67,10 @@ def ratio_ci(x, y, confidence: float = CONFIDENCE, resamples: int = RESAMPLES) -
     my = np.median(y[rng.integers(0, len(y), size=(resamples, len(y)))], axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         boot = np.where(np.isinf(my) & np.isinf(mx), np.nan, my / mx)
+        value = float(np.median(y) / np.median(x))
     boot = boot[~np.isnan(boot)]
     alpha = (1 - confidence) / 2
     low, high = np.quantile(boot, [alpha, 1 - alpha], method="inverted_cdf") if boot.size else (math.nan, math.nan)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        value = float(np.median(y) / np.median(x))
     return Estimate(value, float(low), float(high))
 
 

@@ -1,8 +1,7 @@
 """Reading a sweep: its job dirs, their runs' score curves, and the labels that tell the methods apart.
 
-A sweep dir holds job dirs, each with ``summary.json``, ``.hydra/`` and ``runs/seed_XXX/curve.npz`` (plus, when
-recorded, ``behaviour.npz`` and ``occupancy.npz``). A results dir of :mod:`rovermarl.analysis.export` reads the same
-way: its job dirs hold ``summary.json``, ``config.yaml`` and ``curves.npz``.
+A sweep's job dir holds ``summary.json``, ``.hydra/`` and ``runs/seed_XXX/curve.npz`` (when recorded, also
+``behaviour.npz`` and ``occupancy.npz``); an exported one (:mod:`rovermarl.analysis.results`) reads the same way.
 """
 
 from __future__ import annotations
@@ -21,12 +20,9 @@ from rovermarl.env import World, make_world
 from rovermarl.errors import PluginError, printable
 from rovermarl.record.safe_read import RunSize, check_tree, read_json, read_yaml
 
-# Config keys that never tell two methods apart: where and how a job runs, and the setup (figures group by it).
-# :meth:`Job.keyed_overrides` drops them, so that labels name only what differs in the method. Kept by hand: a
-# job's overrides do not say which keys only affect how it runs (conf/config.yaml's override_dirname.exclude_keys
-# is the nearest list, but it also drops `seeds` and is not in exported results).
+# Config keys that never tell two methods apart (where and how a job runs; the setup, which figures group by), left
+# out of labels. Kept by hand: conf/config.yaml's override_dirname.exclude_keys also drops `seeds` and is not exported.
 NOT_METHOD = ("parallel", "ray", "hydra", "setup", "record", "checkpoint", "resume")
-
 
 CREDIT_LABELS = {"global": "G", "difference": "D", "dpp": "D++"}   # algorithm.reward of the ccea baseline
 RUN_DIR = re.compile(r"seed_\d+")   # a run's dir; seed_XXX.<hash> holds one set aside under another identity
@@ -108,10 +104,9 @@ class Job:
 
     @property
     def evals_per_generation(self) -> float:
-        """Team evaluations per generation, as the job's ``summary.json`` records it (the algorithm's
-        :meth:`~rovermarl.algorithms.Algorithm.evaluations_per_generation`); for jobs from before that key, from the
-        runs' ``team_evals`` series if they record one, else 1."""
-        given = (_read_json(self.path / "summary.json") or {}).get("evals_per_generation")
+        """Team evaluations per generation, as the job's ``summary.json`` records it; for jobs from before that key,
+        from the runs' ``team_evals`` series if they record one, else 1."""
+        given = (_read(self.path / "summary.json", "summary") or {}).get("evals_per_generation")
         if given is not None:
             return float(given)
         for run in self.runs[:1]:
@@ -157,7 +152,7 @@ class Job:
 
     def heldout(self) -> float | None:
         """The median held-out score of the job's final teams (``summary.json``), or None if it has none."""
-        value = (_read_json(self.path / "summary.json") or {}).get("median_heldout_score")
+        value = (_read(self.path / "summary.json", "summary") or {}).get("median_heldout_score")
         return None if value is None else float(value)
 
     def world(self, trust: bool = False):
@@ -176,27 +171,17 @@ class Job:
         return None
 
 
-def _read_yaml(path: Path, kind: str | None = None, notes: list[str] | None = None):
-    """The YAML of ``path`` checked as ``kind`` (:mod:`rovermarl.record.safe_read`), or None if it is missing or
-    refused (then with one note naming the file and the field)."""
+def _read(path: Path, kind: str, notes: list[str] | None = None):
+    """``path`` checked as ``kind`` (:mod:`rovermarl.record.safe_read`): a job's summary.json (a dict) or a YAML (a
+    dict or list); None if it is missing, of another type or refused (then with one note naming file and field)."""
+    read, types = (read_json, dict) if kind == "summary" else (read_yaml, (dict, list))
     try:
-        found = read_yaml(path, kind=kind) if path.is_file() else None
+        found = read(path, kind=kind) if path.is_file() else None
     except OSError as e:
         if notes is not None:
             notes.append(str(e))
         return None
-    return found if isinstance(found, (dict, list)) else None
-
-
-def _read_json(path: Path, notes: list[str] | None = None) -> dict | None:
-    """A job's summary.json, checked, or None (as :func:`_read_yaml`)."""
-    try:
-        found = read_json(path, kind="summary") if path.is_file() else None
-    except OSError as e:
-        if notes is not None:
-            notes.append(str(e))
-        return None
-    return found if isinstance(found, dict) else None
+    return found if isinstance(found, types) else None
 
 
 def load_run(run_dir: Path, size: RunSize | None = None) -> RunCurve:
@@ -208,10 +193,9 @@ def load_run(run_dir: Path, size: RunSize | None = None) -> RunCurve:
 def _exported_runs(path: Path, seeds: int | None, generations) -> list[RunCurve]:
     """The runs of an exported job dir: exact curves, probs on the grid."""
     e = read_exported(path, seeds, generations)
-    if e.probs is None:
-        return [RunCurve(path, int(seed), e.curves.full(i), None) for i, seed in enumerate(e.curves.seeds)]
-    return [RunCurve(path, int(seed), e.curves.full(i), e.probs[i].astype(np.float64), e.grid)
-            for i, seed in enumerate(e.curves.seeds)]
+    probs = [None] * len(e.curves.seeds) if e.probs is None else e.probs.astype(np.float64)
+    x = None if e.probs is None else e.grid
+    return [RunCurve(path, int(seed), e.curves.full(i), probs[i], x) for i, seed in enumerate(e.curves.seeds)]
 
 
 def load_job(path: Path, notes: list[str]) -> Job | None:
@@ -226,28 +210,28 @@ def load_job(path: Path, notes: list[str]) -> Job | None:
 
 
 def _load_job(path: Path, notes: list[str], bad: list[str]) -> Job | None:
-    summary = _read_json(path / "summary.json", bad)
+    summary = _read(path / "summary.json", "summary", bad)
+    choices = dict((summary or {}).get("choices") or {})
+    seeds = len((summary or {}).get("seeds") or []) or None
     if (path / "curves.npz").is_file():
-        config = _read_yaml(path / "config.yaml", "config", bad) or {}
+        config = _read(path / "config.yaml", "config", bad) or {}
         if bad:
             return None
         config = config if isinstance(config, dict) else {}
-        seeds = len((summary or {}).get("seeds") or []) or None
         try:
             runs = _exported_runs(path, seeds, config.get("generations"))
         except OSError as e:
             notes.append(f"{e}; job skipped")
             return None
-        return Job(path, dict((summary or {}).get("choices") or {}), config, [], runs, True)
+        return Job(path, choices, config, [], runs, True)
     hydra_dir = path / ".hydra"
-    choices = dict((summary or {}).get("choices") or {})
     if not choices:
-        runtime = ((_read_yaml(hydra_dir / "hydra.yaml", "hydra", bad) or {}).get("hydra") or {}).get("runtime") or {}
+        runtime = ((_read(hydra_dir / "hydra.yaml", "hydra", bad) or {}).get("hydra") or {}).get("runtime") or {}
         choices = {g: o for g, o in (runtime.get("choices") or {}).items() if "/" not in g and o is not None}
     overrides = [str(o).replace("'", "").replace('"', "")
-                 for o in _read_yaml(hydra_dir / "overrides.yaml", "overrides", bad) or []]
-    config = (_read_yaml(hydra_dir / "config.yaml", "config", bad) if (hydra_dir / "config.yaml").is_file() else
-              _read_yaml(path / "config.yaml", "config", bad)) or {}                      # CLI, or library use
+                 for o in _read(hydra_dir / "overrides.yaml", "overrides", bad) or []]
+    config = (_read(hydra_dir / "config.yaml", "config", bad) if (hydra_dir / "config.yaml").is_file() else
+              _read(path / "config.yaml", "config", bad)) or {}                      # CLI, or library use
     if bad:
         return None
     config = config if isinstance(config, dict) else {}
@@ -266,7 +250,7 @@ def _load_job(path: Path, notes: list[str], bad: list[str]) -> Job | None:
         notes.append(f"{path.name}: no finished run yet; job skipped")
         return None
     job = Job(path, choices, config, overrides, runs, summary is not None)
-    expected = len((summary or {}).get("seeds") or []) or job.config.get("seeds")
+    expected = seeds or config.get("seeds")
     if not job.finished or (expected and len(runs) < expected):
         state = "finished" if job.finished else "unfinished"
         notes.append(f"{path.name}: {state}; plotting the {len(runs)} of {expected or '?'} runs present")

@@ -1,12 +1,10 @@
 """Committed teams that re-score (issue 43): ``python -m rovermarl.analysis verify DIR``.
 
-Every job of ``DIR`` with final teams is re-scored: a compact results dir's ``<job>/genomes.npz`` (seed (R,),
-genomes (R, N, P) float64; written by ``analysis export`` and ``analysis heldout merge``), or a sweep's
-``<job>/runs/seed_XXX/genomes.npy``. Each team is evaluated on its run's initial conditions and on its held-out
-ones, and both scores must equal, bit for bit, what the job's ``summary.json`` (and, in a sweep, each run's
-``run.json``) says. The world is rebuilt from the job's own config only with rovermarl's own classes
-(:func:`~rovermarl.runner.trust.check_targets`): a results dir runs no code of its own, unless ``--trust-config``
-(a world plug-in's job, e.g. ``results/learners``' random_pois ones, run from the repository root).
+Every final team of ``DIR`` (a results dir's ``<job>/genomes.npz``: seed (R,), genomes (R, N, P) float64; a sweep's
+``<job>/runs/seed_XXX/genomes.npy``) is evaluated on its run's initial conditions and its held-out ones; both scores
+must equal, bit for bit, what the job's ``summary.json`` (and a run's ``run.json``) says. The world is built only
+from rovermarl's own classes (:func:`~rovermarl.runner.trust.check_targets`) unless ``--trust-config`` (a world
+plug-in's job, e.g. ``results/learners``' random_pois ones, run from the repository root).
 """
 
 from __future__ import annotations
@@ -116,13 +114,10 @@ def verify(path: Path, trust: bool = False) -> list[Checked]:
         RUN_DIR.fullmatch(g.parent.name) for g in (j / "runs").glob("seed_*/genomes.npy"))]   # seed_XXX.<hash>: aside
     if not jobs:
         raise ResultsError(f"{path}: no job with final teams (genomes.npz or runs/seed_*/genomes.npy)")
-    return [_verified(j, trust) for j in jobs]
-
-
-def _verified(job: Path, trust: bool) -> Checked:
-    """:func:`verify_job`, or a job refused with the one line of what its files or config lack: the other jobs are
-    still verified."""
-    try:
-        return verify_job(job, trust)
-    except (ResultsError, ValueError, OSError) as e:      # a file refused (safe_read), a config refused (ConfigError)
-        return Checked(job.name, False, str(e), refused=True)
+    checked = []
+    for job in jobs:                     # a job whose file (safe_read) or config (ConfigError) is refused: its one line
+        try:
+            checked.append(verify_job(job, trust))
+        except (ResultsError, ValueError, OSError) as e:
+            checked.append(Checked(job.name, False, str(e), refused=True))
+    return checked
