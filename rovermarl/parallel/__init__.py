@@ -1,12 +1,9 @@
-"""Where the independent runs of a job execute: the backend that ``parallel._target_`` names, built like every other
-plug-in (``conf/parallel/*.yaml``): :class:`Serial` runs them one after another in this process,
-:class:`~rovermarl.parallel.ray_backend.Ray` on a pool of Ray actors (with ``ic_shards`` > 1 one run at a time, each
-evaluation's episodes over Ray actors: :mod:`rovermarl.parallel.shards`).
+"""Where a job's independent runs execute: the backend ``parallel._target_`` names (``conf/parallel/*.yaml``),
+:class:`Serial` (one after another in this process) or :class:`~rovermarl.parallel.ray_backend.Ray`.
 
-This package only dispatches chunks. The chunk function ``advance(cfg, seed, state, n, evaluation=...)`` (see
-:func:`rovermarl.runner.chunk.advance`) is passed in; each backend calls it, and ``on_chunk(record, advanced)``
-runs in this process after each chunk. A record (:class:`rovermarl.record.checkpoint.RunRecord`) has ``seed``,
-``state``, ``done`` and ``add(chunk) -> generations advanced``.
+This package only dispatches chunks: the chunk function (:func:`rovermarl.runner.chunk.advance`) is passed in, and
+``on_chunk(record, advanced)`` runs here after each chunk. A record (:class:`~rovermarl.record.checkpoint.RunRecord`)
+has ``seed``, ``state``, ``done`` and ``add(chunk) -> generations advanced``.
 """
 
 from __future__ import annotations

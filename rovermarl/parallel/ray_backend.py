@@ -14,7 +14,9 @@ import tempfile
 import threading
 import time
 from dataclasses import dataclass
+from functools import partial
 
+import psutil
 import ray
 
 from rovermarl import errors
@@ -22,6 +24,7 @@ from rovermarl.parallel import Backend
 from rovermarl.parallel.errors import BackendError
 
 log = logging.getLogger("rovermarl")
+
 
 @ray.remote(num_cpus=1)
 class ChunkWorker:
@@ -44,8 +47,7 @@ def release_pool() -> None:
     """Stop the pool's actors and free their CPUs (before IC-shard actors need them)."""
     for actor in _POOL:
         ray.kill(actor)
-    _POOL.clear()
-    _POOL_FN.clear()
+    forget_pool()
 
 
 def forget_pool() -> None:
@@ -74,12 +76,6 @@ def _watched(call):
         raise BackendError(f"Ray failed: {type(e).__name__}: {first}") from None
 
 
-def _local_raylets() -> list:
-    """The raylet processes this driver started (an embedded Ray), to watch; none when joining a cluster."""
-    import psutil
-    return [p for p in psutil.Process().children(recursive=True) if "raylet" in p.name()]
-
-
 def _alive(raylets: list) -> None:
     """:class:`BackendError` if Ray's GCS no longer answers or a raylet of this driver died (Ray itself would
     keep waiting, print its C++ logs and abort this process after 60 s)."""
@@ -97,17 +93,16 @@ def ensure_ray(ray_cfg) -> None:
     """Start an embedded local Ray, or join ``ray.address``, unless Ray already runs in this process."""
     if ray.is_initialized():
         return
-    common = {"log_to_driver": False, "logging_level": logging.ERROR}
     # Ray's C++ core copies its error lines to the driver's stderr; when Ray dies under a sweep they would come
     # before our one-line error. A user's own setting wins (README, "Configuration").
     os.environ.setdefault("RAY_BACKEND_LOG_LEVEL", "fatal")
     if ray_cfg.address:
         _probe(ray_cfg.address)
+        where = {"address": ray_cfg.address}
+    else:
+        where = {"num_cpus": ray_cfg.num_cpus or os.cpu_count(), "include_dashboard": False}
     with _held_stderr(), _signals_noted() as seen:
-        if ray_cfg.address:
-            ray.init(address=ray_cfg.address, **common)
-        else:
-            ray.init(num_cpus=ray_cfg.num_cpus or os.cpu_count(), include_dashboard=False, **common)
+        ray.init(**where, log_to_driver=False, logging_level=logging.ERROR)
     if signal.SIGTERM in seen:                      # Ray's start swallowed what its own SIGTERM handler raised
         raise SystemExit(signal.SIGTERM)
     if signal.SIGINT in seen:                       # or what the caller's SIGINT handler raised
@@ -223,9 +218,7 @@ def _run_sharded(par: Ray, job: dict, records, on_chunk, advance) -> None:
 
     release_pool()                                                      # its actors hold the CPUs shards need
     actors = [ShardActor.remote(job) for _ in range(par.ic_shards)]
-
-    def evaluation(world, ic, keep_final, fresh_seed=None):
-        return ShardedEvaluation(actors, world, ic, keep_final, fresh_seed)
+    evaluation = partial(ShardedEvaluation, actors)
     try:
         for rec in records:
             while not rec.done:
@@ -244,9 +237,7 @@ def _run_pool(par: Ray, job: dict, records, on_chunk, advance) -> None:
         slots = cpus
     queue = [rec for rec in records if not rec.done]
     free = _workers(min(slots, len(queue)), par.retries, advance)
-    job_cfg = ray.put(job)
-    inflight = {}
-    stall = float(par.stall_timeout)
+    job_cfg, inflight, stall = ray.put(job), {}, float(par.stall_timeout)
 
     def submit(rec, worker):
         inflight[worker.advance.remote(job_cfg, rec.seed, rec.state, par.chunk)] = rec, worker
@@ -254,7 +245,7 @@ def _run_pool(par: Ray, job: dict, records, on_chunk, advance) -> None:
     while queue and free:
         submit(queue.pop(0), free.pop())
     last = probed = time.monotonic()
-    raylets = _local_raylets()
+    raylets = [p for p in psutil.Process().children(recursive=True) if "raylet" in p.name()]   # an embedded Ray's
     with _continued() as resumed:
         while inflight:
             ready, _ = _watched(lambda: ray.wait(list(inflight), num_returns=1, timeout=0.5))

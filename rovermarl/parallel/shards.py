@@ -1,9 +1,8 @@
-"""Initial-condition shards: each team evaluation's E episodes split over S Ray actors (``parallel.ic_shards=S``, run by
-:class:`rovermarl.parallel.ray_backend.Ray`).
+"""Initial-condition shards: each team evaluation's E episodes split over S Ray actors (``parallel.ic_shards=S``).
 
-The generation loop stays in the driver; every evaluation sends the team to S actors, each rolls out its slice
-of episodes, and the per-episode returns are concatenated in order before the mean, so scores are bit-identical
-to local evaluation. It pays off only when one evaluation is heavy (see ``benchmarks/scaling.py``).
+The generation loop stays in the driver; each actor rolls out its slice of episodes and the per-episode returns are
+concatenated in order before the mean, so scores are bit-identical to local evaluation. It pays off only when one
+evaluation is heavy (``benchmarks/scaling.py``).
 """
 
 from __future__ import annotations
@@ -43,10 +42,9 @@ class ShardActor:
 
 
 class ShardedEvaluation(Evaluator):
-    """An :class:`~rovermarl.algorithms.base.Evaluator` over shard actors, with the same results as local evaluation
-    (:class:`rovermarl.runner.chunk.Evaluation`): with ``keep_final`` :meth:`measure` gives the team's final
-    positions (E, N, 2); ``fresh_seed`` and :meth:`draw` as there (each actor draws its slice of a generation's initial
-    conditions itself). It gives no :meth:`kernel_inputs` (teams are scored in other processes)."""
+    """An :class:`~rovermarl.algorithms.base.Evaluator` over shard actors, with the results and arguments of the local
+    :class:`rovermarl.runner.chunk.Evaluation` (under ``fresh_ic`` each actor draws its own slice of a generation's
+    initial conditions); no :meth:`kernel_inputs`: teams are scored in other processes."""
 
     def __init__(self, actors: list, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.actors, self.seed = actors, fresh_seed
@@ -54,15 +52,13 @@ class ShardedEvaluation(Evaluator):
         self.calls = 0
         self.final_xy = np.empty(ic[0].shape) if keep_final else None
         bounds = np.linspace(0, ic[1].shape[0], len(actors) + 1).round().astype(int)
-        self.slices = list(zip(bounds[:-1], bounds[1:], strict=True))
-        ray.get([a.set_ic.remote(*(part[lo:hi] for part in ic)) for a, (lo, hi) in zip(actors, self.slices,
-                                                                                       strict=True)])
+        self.shards = list(zip(actors, bounds[:-1], bounds[1:], strict=True))     # (actor, lo, hi): its episodes
+        ray.get([a.set_ic.remote(*(part[lo:hi] for part in ic)) for a, lo, hi in self.shards])
 
     def draw(self, generation: int) -> None:
         if not self.fresh:
             super().draw(generation)
-        ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, (lo, hi) in zip(self.actors, self.slices,
-                                                                                       strict=True)])
+        ray.get([a.draw.remote(self.seed, generation, lo, hi) for a, lo, hi in self.shards])
 
     def measure(self, genomes: np.ndarray) -> Measured:
         self.calls += 1

@@ -1,12 +1,10 @@
 """What a job asks of the machine, estimated before any work (and before Ray starts).
 
-:func:`check` refuses, in one line naming the key, a config that cannot fit this machine's memory or whose single
-team evaluation would take longer than :data:`EVALUATION_LIMIT_S`, or whose mutation size makes genomes non-finite;
-:func:`estimate` gives the memory and time a feasible job needs (the job logs the time at INFO when it is long).
-A job with more runs than fit in memory at once streams them in batches (:func:`batch_size`).
-
-The cost model is this project's kernel measured on a 2-core AVX-512 machine (``benchmarks/throughput.py``: about
-320 ns per agent-step at 38 inputs x 16 hidden units, two thirds of it the MLP), scaled by the MLP's size.
+:func:`check` refuses, in one line naming the key, a job that cannot fit in this machine's memory, whose one team
+evaluation would take longer than :data:`EVALUATION_LIMIT_S`, or whose mutation makes genomes non-finite;
+:func:`estimate` gives a feasible job's memory and time; :func:`batch_size` how many runs the driver holds at once.
+The cost model is this kernel on a 2-core AVX-512 machine (``benchmarks/throughput.py``: about 320 ns per agent-step
+at 38 inputs x 16 hidden units, two thirds of it the MLP), scaled by the MLP's size.
 """
 
 from __future__ import annotations
@@ -28,6 +26,8 @@ _RUN, _ENV = packaged("config.yaml"), packaged("env/rovers.yaml")
 DEFAULTS = {"generations": _RUN["generations"], "seeds": _RUN["seeds"], "env.episodes": _ENV["episodes"],
             "env.steps": _ENV["steps"], "env.n_rovers": _ENV["n_rovers"],
             "policy.hidden": packaged("policy/mlp.yaml")["hidden"]}      # from conf/: the keys named when too big
+MEMORY_KEYS = {"records": ("generations",), "team": ("policy.hidden", "env.n_rovers"),   # a part's keys to name
+               "episodes": ("env.episodes", "env.n_rovers", "policy.hidden")}
 
 
 @dataclass(frozen=True)
@@ -63,16 +63,15 @@ def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -
     env, g = plain["env"], int(plain["generations"])
     n, e, h = int(env["n_rovers"]), int(env["episodes"]), int(plain["policy"]["hidden"])
     d = World.from_config(plain, trust=True).obs_dim                 # the world's observation blocks (composed)
-    genome = n_params(d, h)
-    seeds = int(plain["seeds"])
+    genome, seeds = n_params(d, h), int(plain["seeds"])
     memory = {
         "records": 1.0 * batch_size(plain, series_bytes) * run_bytes(plain, series_bytes),   # the driver's runs
         "team": 3.0 * n * genome * 8,                                          # parents, children, the world's copy
         "episodes": 1.0 * e * n * (d + h + 8) * 8,                             # observations, hidden units, state
     }
     evaluation_s = _evaluation_s(plain, d)
-    par = plain.get("parallel") or {}
-    cpus = int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count()) if backend(par).uses_ray else 1
+    uses_ray = backend(plain.get("parallel") or {}).uses_ray
+    cpus = int((plain.get("ray") or {}).get("num_cpus") or os.cpu_count()) if uses_ray else 1
     job_s = evaluation_s * (g * per_generation + 1) * seeds / max(1, min(cpus, seeds))
     return Estimate(memory, evaluation_s, job_s, cpus)
 
@@ -85,9 +84,8 @@ def _evaluation_s(plain: dict, d: int) -> float:
 
 
 def precheck(plain: dict) -> None:
-    """The evaluation-time limit of :func:`check` with the paper's observation (3 rows per POI, 2 per rover; a
-    plug-in's only adds rows), before the world is built: a world too large to build at all (its (N, D) input rows
-    for env.n_rovers=100000) is refused in the same one line."""
+    """The time limit of :func:`check` before the world is built, with the paper's observation (3 rows per POI, 2 per
+    rover; a plug-in's only adds rows): a world too large to build (env.n_rovers=100000) is refused in one line."""
     try:
         seconds = _evaluation_s(plain, 3 * len(plain["setup"]["coupling"]) + 2 * int(plain["env"]["n_rovers"]))
     except (KeyError, TypeError, ValueError, ArithmeticError):   # malformed: building the world says what is wrong
@@ -122,16 +120,14 @@ def check(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -> E
                                  "mutations make genomes non-finite")
     est = estimate(plain, series_bytes, per_generation)
     _limit(plain, est.evaluation_s)
-    avail = available_memory()
-    if run_bytes(plain, series_bytes) > avail / 4:                 # one run's record: never split
-        raise errors.ConfigError("generations", _get(plain, "generations"), f"one run needs about "
-                                 f"{size(run_bytes(plain, series_bytes))} of memory for its record, more than a "
-                                 f"quarter of the {size(avail)} this machine has available")
+    one_run, avail = run_bytes(plain, series_bytes), available_memory()
+    if one_run > avail / 4:                                        # one run's record: never split
+        raise errors.ConfigError("generations", _get(plain, "generations"), f"one run needs about {size(one_run)} "
+                                 f"of memory for its record, more than a quarter of the {size(avail)} this machine "
+                                 "has available")
     if est.total_memory > avail:
         part = max(est.memory, key=est.memory.get)
-        keys = {"records": ("generations",), "team": ("policy.hidden", "env.n_rovers"),
-                "episodes": ("env.episodes", "env.n_rovers", "policy.hidden")}[part]
-        key = _largest(plain, keys)
+        key = _largest(plain, MEMORY_KEYS[part])
         raise errors.ConfigError(key, _get(plain, key), f"the job needs about {size(est.total_memory)} of memory "
                                  f"({part}), this machine has {size(avail)} available")
     return est

@@ -1,12 +1,9 @@
 """One chunk of one run: advance run ``seed`` of a config from a state by n generations (any algorithm).
 
-A run is a pure function of ``(config, seed)``. Its named random streams (:mod:`rovermarl.env.streams`) give the
-initial conditions (drawn here, the same in every chunk; :meth:`World.run_ic <rovermarl.env.World.run_ic>`) and the
-algorithm's streams. The ``evaluation`` section of the config says how teams are scored: ``fresh_ic`` (SPEC section 8:
-a new set of initial conditions every generation) and ``heldout`` (how many held-out initial conditions score the final
-team, :meth:`World.heldout_ic <rovermarl.env.World.heldout_ic>`). :func:`advance` rebuilds the run from its
-compact state, advances it and returns the chunk; Ray can therefore rerun a chunk on another worker after a crash
-and get the same numbers. Evaluation is passed in (local by default, IC shards from :mod:`rovermarl.parallel`).
+A run is a pure function of ``(config, seed)`` (its named random streams: :mod:`rovermarl.env.streams`), so
+:func:`advance` rebuilds it from its compact state and Ray can rerun a chunk on another worker after a crash with the
+same numbers. Teams are scored as the ``evaluation`` section says (``fresh_ic``: SPEC section 8) by the evaluation
+passed in (local by default, IC shards from :mod:`rovermarl.parallel`).
 """
 
 from __future__ import annotations
@@ -32,8 +29,7 @@ EVALUATION = packaged("config.yaml")["evaluation"]   # its defaults, also for co
 
 @dataclass(frozen=True, eq=False)
 class Parts:
-    """What every run of a config is built from: the world, the algorithm, the ``record`` switches and the
-    ``evaluation`` settings."""
+    """What every run of a config is built from (:func:`build`)."""
 
     world: World
     algorithm: Algorithm
@@ -108,11 +104,9 @@ def parts(cfg: dict) -> Parts:
 
 
 class Evaluation(Evaluator):
-    """The :class:`~rovermarl.algorithms.base.Evaluator` of a run in this process: teams scored on the run's initial
-    conditions ``ic``, their final positions (E, N, 2) kept with ``keep_final`` (:attr:`final_xy` is the buffer they
-    are written to). With ``fresh_seed`` (the run's seed, under ``evaluation.fresh_ic``) :attr:`fresh` is true and
-    :meth:`draw` moves to a generation's own set. The initial conditions are prepared once (``World.prepare``), so a
-    call checks only the genomes; :meth:`measure_many` scores a population in one ``World.evaluate_many`` call."""
+    """The :class:`~rovermarl.algorithms.base.Evaluator` of a run in this process, on its initial conditions ``ic``
+    (prepared once: a call checks only the genomes); with ``keep_final`` the final positions (E, N, 2) go to the
+    buffer :attr:`final_xy`; ``fresh_seed`` is the run's seed under ``evaluation.fresh_ic`` (else None)."""
 
     def __init__(self, world: World, ic: tuple, keep_final: bool = True, fresh_seed: int | None = None):
         self.world, self.ic, self.seed = world, ic, fresh_seed
@@ -122,7 +116,6 @@ class Evaluation(Evaluator):
         self.calls = 0
 
     def draw(self, generation: int) -> None:
-        """Score on the initial conditions of ``generation`` from now on (:meth:`World.run_ic`)."""
         if not self.fresh:
             super().draw(generation)
         self.ic = self.world.run_ic(self.seed, generation)
@@ -146,8 +139,6 @@ class Evaluation(Evaluator):
         return [Measured(float(f), None if final is None else final[b]) for b, f in enumerate(scores)]
 
     def kernel_inputs(self) -> KernelInputs:
-        """What a compiled generation loop needs to evaluate teams itself, as this does (it adds its evaluations to
-        :attr:`calls`)."""
         return KernelInputs(self.world, self.ic, self.final_xy)
 
     def rollout(self, genomes: np.ndarray) -> Rollout:
@@ -223,10 +214,9 @@ def advance(cfg: dict, seed: int, state: dict | None, n: int, evaluation: Evalua
     (None: from its start).
 
     Returns ``seed``, ``start``, ``stop``, the new ``state``, ``score`` (stop - start,), ``series`` (the algorithm's
-    arrays of those generations), ``events`` (the observer's, per result file), ``evaluations`` (team
-    evaluations), ``cpu_s`` (the CPU-seconds the chunk took); when starting also ``initial_score``
-    and the initial conditions ``ic_xy`` (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes`` and
-    its ``heldout_score``.
+    arrays of those generations), ``events`` (the observer's, per result file), ``evaluations`` (team evaluations),
+    ``cpu_s`` (the chunk's CPU-seconds); when starting also ``initial_score`` and the initial conditions ``ic_xy``
+    (E, N, 2), ``ic_heading`` (E, N); when done the final team ``genomes`` and its ``heldout_score``.
     """
     cpu = time.process_time()
     run = Run(cfg, seed, state, evaluation)
@@ -252,9 +242,8 @@ def heldout_score(p: Parts, seed: int, team: np.ndarray) -> float:
 
 
 def to_plain(cfg: DictConfig) -> dict:
-    """A composed config as plain containers (what crosses to workers), without Hydra's own node, and without the
-    ``budget`` section while it sets nothing (``budget.agent_steps: null``: ``generations`` is the budget), so a
-    config reads as it did before the section existed."""
+    """A composed config as plain containers (what crosses to workers), without Hydra's node, nor the ``budget``
+    section while it sets nothing (``agent_steps: null``), so a config reads as it did before the section existed."""
     out = OmegaConf.to_container(cfg, resolve=True)
     out.pop("hydra", None)
     if isinstance(out.get("budget"), dict) and out["budget"].get("agent_steps") is None:

@@ -1,6 +1,5 @@
 """A job's first run compiles: whether it will (:func:`cold`, said by :func:`announce`), and compiling ahead by running
-the job briefly (:func:`warm`), which ``rovermarl.train`` does once in the driver, and ``python -m rovermarl.warmup``
-does on request."""
+the job briefly (:func:`warm`: ``rovermarl.train`` once in the driver, ``python -m rovermarl.warmup`` on request)."""
 
 from __future__ import annotations
 
@@ -21,16 +20,14 @@ from rovermarl.runner.job import run_job
 
 
 def cold(cfg: DictConfig) -> dict[str, list[str]]:
-    """What of the job's compiled code is not in numba's cache yet for its world and precision (a first run compiles
-    it): the world's rollout and evaluation, the compiled CC-(1+1)-ES loop where the job runs it, and the kernel
-    functions that the algorithm names (``Algorithm.kernel_calls``: a population's batched evaluation, an env's
-    step), as {what the compile notice calls their module
-    (``jit.compiled_name``): [function, ...]}; empty when all is cached."""
+    """The job's compiled code not yet in numba's cache for its world and precision (a first run compiles it): the
+    world's rollout and evaluation, the compiled CC-(1+1)-ES loop where the job runs it, and the kernel functions the
+    algorithm names (``Algorithm.kernel_calls``), as {``jit.compiled_name`` of their module: [function, ...]}; empty
+    when all is cached."""
     built = parts(to_plain(cfg))                 # the job's world and algorithm, as validate built them
     world, algorithm = built.world, built.algorithm
     kernel = world.compiled
-    code = [kernel.rollout, kernel.evaluate]
-    code += algorithm.kernel_functions(kernel)                          # its own calls: a population's, an env's
+    code = [kernel.rollout, kernel.evaluate, *algorithm.kernel_functions(kernel)]
     if isinstance(algorithm, CC11ES) and algorithm.loop != "python" and compiled.refusal(
             algorithm, built.evaluation["fresh_ic"], backend(cfg.parallel).shards == 1) is None:
         code.append(compiled.loop_of(kernel).run)

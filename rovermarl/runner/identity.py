@@ -1,15 +1,12 @@
 """What identifies a run and names a job's output dir: the one home of the keys left out of each.
 
-- ``RUNTIME``: top-level keys that choose how and where runs execute and what they record, never their numbers
-  (backend, Ray, recording, checkpoint interval, resume, Hydra's own node).
-- A run's identity (:func:`config_hash`) also leaves out ``seeds`` and ``seed`` (a run has its own seed) and
-  ``levels`` (only the job summary reads them): a finished run is reused whatever those say.
-- The recording switches ``record.occupancy`` and ``record.behaviour`` (:data:`RECORDED`) change what a run's files
-  hold and its C8 measure (``switched``), so they are part of its identity when off (on, the default, leaves the
-  identity as it was before this rule).
-- Keys added after runs were published (any key not in :data:`PUBLISHED`, rovermarl's or a plug-in's) are left out
-  of a run's identity while they hold their default (:func:`default`: the packaged one, else the one the class
-  declares), so a finished run of an earlier version stays finished (its numbers are the same); a new key needs no
+- ``RUNTIME``: top-level keys that choose how and where runs execute and what they record, never their numbers.
+- A run's identity (:func:`config_hash`) also leaves out ``seeds``, ``seed`` (a run has its own) and ``levels``
+  (only the job summary reads them): a finished run is reused whatever those say.
+- ``record.occupancy`` and ``record.behaviour`` (:data:`RECORDED`) change what a run's files hold and its C8 measure
+  (``switched``): they join its identity when off (on, the default, leaves it as it was before this rule).
+- A key not in :data:`PUBLISHED` (added since runs were published, by rovermarl or a plug-in) is left out while it
+  holds its default (:func:`default`), so a finished run of an earlier version stays finished; a new key needs no
   edit here.
 - A job's dir name (:data:`NOT_IN_DIR_NAMES`) keeps ``seed`` and ``levels`` (they change what the job dir holds) but
   not ``seeds``, so raising the seed count reuses the runs already done.
@@ -28,8 +25,7 @@ RUNTIME = ("parallel", "ray", "record", "checkpoint", "resume", "hydra")
 NOT_IN_RUN_IDENTITY = (*RUNTIME, "seeds", "seed", "levels")
 NOT_IN_DIR_NAMES = (*RUNTIME, "seeds")
 RECORDED = ("occupancy", "behaviour")
-# The keys of each section that runs published before this rule carried: frozen history, never edited. Any other key
-# (added since, by rovermarl or by a plug-in) is left out of a run's identity while it holds its default (default()).
+# The keys each section carried when runs were published: frozen history, never edited.
 PUBLISHED = {
     "algorithm": ("_recursive_", "_target_", "elites", "init_high", "init_low", "k", "mutation", "pop_size", "reward",
                   "selection", "team"),
@@ -59,17 +55,17 @@ def default(section: str, node: dict, key: str):
         option = option.get(section) if path.parent == CONF_DIR or isinstance(option.get(section), dict) else option
         if isinstance(option, dict) and option.get("_target_") == target and key in option:
             return option[key]
-    if isinstance(target, str):
-        return _declared(target, key)
-    return MISSING
+    return _declared(target, key) if isinstance(target, str) else MISSING
 
 
 def _declared(target: str, key: str):
-    """The default a class declares for parameter ``key`` (a dataclass field or an ``__init__`` argument)."""
+    """The default a class declares for parameter ``key`` (a field of the dataclass or of a World's ``Params``, or
+    an ``__init__`` argument)."""
     from hydra.utils import get_class
     try:
         cls = get_class(target)
-        fields = getattr(cls, "__dataclass_fields__", {})
+        fields = getattr(cls, "__dataclass_fields__", None) or getattr(getattr(cls, "Params", None),
+                                                                       "__dataclass_fields__", {})
         if key in fields:
             f = fields[key]
             value = f.default if f.default is not dataclasses.MISSING else f.default_factory()

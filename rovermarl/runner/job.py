@@ -6,6 +6,7 @@ ones continue from their last good checkpoint, so the results equal those of an 
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from functools import partial
@@ -69,24 +70,28 @@ def all_finished(cfg: DictConfig, job_dir: Path) -> bool:
             return False
         if cfg.resume == "strict" and not same_code(meta.get("provenance")):
             return False
+    return _current_summary(job_dir / "summary.json", seeds, cfg.levels) is not None
+
+
+def _current_summary(path: Path, seeds: list[int], levels, name: str | None = None) -> dict | None:
+    """The job summary at ``path`` if it is of exactly these runs and score levels, with held-out scores, else None;
+    with ``name``, one that cannot be read is logged (it is then rebuilt from the runs)."""
     try:
-        summary = read_json(job_dir / "summary.json", kind="summary")
-    except OSError:
-        return False
-    return isinstance(summary, dict) and _current(summary, seeds, cfg.levels)
-
-
-def _current(summary: dict, seeds: list[int], levels) -> bool:
-    """A job summary of exactly these runs and score levels, with held-out scores."""
-    return ("heldout_score" in summary and summary.get("seeds") == seeds and
-            set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in levels})
+        summary = read_json(path, kind="summary")
+    except OSError as e:
+        if name is not None:
+            log.warning("%s: %s is unreadable (%s); rebuilding it from the runs", name, path, type(e).__name__)
+        return None
+    current = (isinstance(summary, dict) and "heldout_score" in summary and summary.get("seeds") == seeds
+               and set(summary.get("first_generation_reaching", ())) == {str(lv) for lv in levels})
+    return summary if current else None
 
 
 def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) -> dict:
     job, job_dir = to_plain(cfg), Path(job_dir)
     key, built = config_hash(job), parts(job)
-    series = built.algorithm.series
-    per_generation = built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"])
+    algorithm, fresh = built.algorithm, built.evaluation["fresh_ic"]
+    series, per_generation = algorithm.series, algorithm.evaluations_per_generation(fresh)
     est = budget.estimate(job, series_bytes(series), per_generation)
     if est.job_s > LONG_JOB_S:
         log.info("%s: estimated about %s on %d CPUs (%s of memory)", name, budget.duration(est.job_s), est.cpus,
@@ -119,15 +124,16 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
         log.info("%s: %d of %d runs already finished, skipped", name, len(outcomes), len(seeds))
     summary_path = job_dir / "summary.json"
     _saved_generations(job_dir / ".hydra" / "config.yaml", cfg.generations)   # Hydra rewrote it: also when finished
-    if not todo and summary_path.exists():
-        summary = _read_summary(summary_path, name)
-        if _current(summary, seeds, cfg.levels):
-            return summary                                                 # else stale: rebuilt below
+    if not todo and summary_path.exists() and (summary := _current_summary(summary_path, seeds, cfg.levels, name)):
+        return summary                                                     # else stale: rebuilt below
 
     if not (job_dir / ".hydra" / "config.yaml").exists():              # library use: keep the config beside the runs
         with atomic_open(job_dir / "config.yaml", "w") as f:
             f.write(OmegaConf.to_yaml(job))
-    rrd = partial(_rrd, world=built.world, record=cfg.record, series=series) if cfg.record.rerun else None
+
+    def rrd(path: Path, result: dict) -> None:                          # a run's recording, under record.rerun
+        write_rrd(path, result, built.world, series=series, every=cfg.record.every, steps=cfg.record.steps,
+                  recording_id=f"seed_{result['seed']:03d}")
     every = max(cfg.checkpoint.every, 1)
     batch = budget.batch_size(job, series_bytes(series))
     if batch < len(todo):
@@ -145,7 +151,7 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
                                           "team_evals": evaluations + sum(r.evaluations for r in records),
                                           "runs_advanced": len(todo)})
             if rec.done:
-                save_run(job_dir, {**rec.result(), "cpu_s": rec.cpu_s}, series, key, rrd)
+                save_run(job_dir, {**rec.result(), "cpu_s": rec.cpu_s}, series, key, rrd if cfg.record.rerun else None)
                 cpu[rec.seed] = rec.cpu_s
                 checkpoint.remove(out / "checkpoint.bin")
                 outcomes[rec.seed] = outcome(rec.score, cfg.levels)
@@ -163,12 +169,11 @@ def _run_job(cfg: DictConfig, job_dir: Path, name: str, choices: dict | None) ->
     compiled = compile_seconds() - compiling                           # numba compiling here: not the job's speed
     summary = summarize(choices or {}, seeds, outcomes, list(cfg.levels), wall, team_evals=evaluations,
                         heldout=heldout, compile_s=compiled, cpu_s=cpu)
-    summary["evals_per_generation"] = per_generation                  # what the analysis puts on an x-axis
-    summary["train_ic"] = "fresh" if built.evaluation["fresh_ic"] else "fixed"   # what the learner trained on
-    summary["final_team"] = built.algorithm.final_team                # which team the held-out score is of
-    summary["agent_steps_per_generation"] = built.algorithm.agent_steps_per_generation(built.evaluation["fresh_ic"])
-    summary["own_agent_steps_per_generation"] = built.algorithm.own_agent_steps_per_generation(
-        built.evaluation["fresh_ic"])
+    summary.update(evals_per_generation=per_generation,                  # what the analysis puts on an x-axis
+                   train_ic="fresh" if fresh else "fixed",                # what the learner trained on
+                   final_team=algorithm.final_team,                       # which team the held-out score is of
+                   agent_steps_per_generation=algorithm.agent_steps_per_generation(fresh),
+                   own_agent_steps_per_generation=algorithm.own_agent_steps_per_generation(fresh))
     if cfg.setup.get("coupling_level") is not None:                # the coupling family (conf/setup/coupling*.yaml)
         summary["coupling_level"] = int(cfg.setup.coupling_level)
     write_json(summary_path, summary)
@@ -220,16 +225,6 @@ def _template(cfg, seed: int) -> dict:
     return out
 
 
-def _read_summary(path: Path, name: str) -> dict:
-    """The job's summary.json, or {} (rebuilt from the runs) if it cannot be read."""
-    try:
-        summary = read_json(path, kind="summary")
-    except OSError as e:
-        log.warning("%s: %s is unreadable (%s); rebuilding it from the runs", name, path, type(e).__name__)
-        return {}
-    return summary if isinstance(summary, dict) else {}
-
-
 def _no_curve(out: Path, generations: int) -> str | None:
     """What is wrong with a finished run's score curve (unreadable, not of ``generations``, or not a finite number),
     else None."""
@@ -244,10 +239,8 @@ def _set_aside_other_identity(out: Path, key: str, name: str) -> None:
     """A run dir made under another identity (another config, or other recording switches) moves to
     ``seed_XXX.<its hash>``, so the run starts afresh beside it and the two never mix."""
     other = None
-    try:
+    with contextlib.suppress(OSError, AttributeError):
         other = read_json(out / "run.json").get("config_hash")
-    except (OSError, AttributeError):
-        pass
     for path in (out / "checkpoint.bin", checkpoint.previous(out / "checkpoint.bin")):
         other = other or (checkpoint.identity(path) if path.exists() else None)
     if not other or other == key:
@@ -267,8 +260,3 @@ def _backfill(out: Path, meta: dict, built, seed: int) -> float:
     score = heldout_score(built, seed, load_npy(out / "genomes.npy", RunSize.of(None, built.world).genomes()))
     write_run_json(out, {**meta, "heldout_score": score})
     return score
-
-
-def _rrd(path: Path, result: dict, world, record, series) -> None:
-    write_rrd(path, result, world, series=series, every=record.every, steps=record.steps,
-              recording_id=f"seed_{result['seed']:03d}")

@@ -1,19 +1,13 @@
-"""Configs read back from a results directory run no code of their own.
+"""Configs read back from a results directory run no code of their own (docs/GUIDE.md, docs/FAULTS.md).
 
-A job dir's ``.hydra/config.yaml`` (or ``config.yaml``) names the classes that built its runs (``_target_``), and
 Hydra's ``instantiate`` imports whatever a ``_target_`` names, attribute chains included
-(``rovermarl.record.outputs.np.save`` is ``numpy.save``). A read path that rebuilds a run from such a config
-(``python -m rovermarl.analysis export`` re-runs one run for the Fig. 6 data) first checks it against an allow-list
-derived from the packaged config groups (:data:`~rovermarl.resources.CONF_DIR`, :func:`groups`): a ``_target_``
-may only sit at the root of a group that has classes (``config[group]._target_``, e.g. ``k``) and must be exactly
-one of the classes that group's options name (``conf/k/*.yaml``); an algorithm's option that takes a group's node
-(``k: ${k}`` in ``conf/algorithm/cc11es.yaml``) lets that key hold one of the group's classes too
-(``algorithm.k._target_``). Any other ``_target_`` (in an operator's arguments, in a list, under ``_args_``, at the
-top level, under an unknown key) is refused, as is an interpolation that resolves to a ``_target_`` or to another
-interpolation: the check reads the config as the run would, resolved. Configs written before the ``algorithm``
-group (``rovermarl.evolution.*``) pass as :func:`rovermarl.runner.chunk.upgrade` rewrites them. The caller may
-trust a config instead (``--trust-config``: e.g. your own plug-in on ``hydra.searchpath``). Nothing is imported
-before the check: it only reads YAML.
+(``rovermarl.record.outputs.np.save`` is ``numpy.save``), so a read path that rebuilds a run from a job dir's config
+first calls :func:`check_targets`. A ``_target_`` may only sit at the root of a config group's node (``k._target_``,
+or ``algorithm.k._target_`` where an algorithm's option takes the group's node, ``k: ${k}``) and must be exactly one
+of the classes that group's packaged options name (:func:`groups`). Anything else is refused, the config resolved
+too (no interpolation may yield a ``_target_`` or another interpolation); configs from before the ``algorithm`` group
+pass as :func:`rovermarl.runner.chunk.upgrade` rewrites them. The check only reads YAML: nothing is imported before
+it. ``--trust-config`` skips it (e.g. your own plug-in on ``hydra.searchpath``).
 """
 
 from __future__ import annotations
@@ -45,14 +39,12 @@ class Groups:
 @functools.cache
 def groups(conf_dir: Path = CONF_DIR) -> Groups:
     """The allow-list of ``conf_dir``: every ``<group>/<option>.yaml`` whose root has a ``_target_``."""
-    options = []
+    options, classes = [], {}
     for path in sorted(conf_dir.glob("*/*.yaml")):
         node = OmegaConf.to_container(OmegaConf.load(path), resolve=False)
         if isinstance(node, dict) and isinstance(node.get("_target_"), str):
             options.append((path.parent.name, node))
-    classes: dict[str, set[str]] = {}
-    for group, node in options:
-        classes.setdefault(group, set()).add(node["_target_"])
+            classes.setdefault(path.parent.name, set()).add(node["_target_"])
     slots: dict[tuple[str, str], dict[str, str]] = {}
     for group, node in options:
         for key, value in node.items():
@@ -106,11 +98,12 @@ def _walk(node, path: str, group: str | None, allow: Groups, legacy: bool, sourc
         if group is None:
             raise errors.ConfigError(key, target, "only the node of a config group (" + ", ".join(allow.classes)
                                      + f") may name a class, in {source}: {REFUSE}")
-        target = _canonical(target, legacy)
+        if legacy and isinstance(target, str) and target.startswith(LEGACY[0]):   # as the runner builds it
+            target = LEGACY[1] + target.removeprefix(LEGACY[0])
         if not isinstance(target, str):
             raise errors.ConfigError(key, target, f"must be a dotted class name (a string), in {source}: {REFUSE}")
         if target not in allow.classes[group]:
-            where = ("is outside rovermarl" if not str(target).startswith("rovermarl.") else
+            where = ("is outside rovermarl" if not target.startswith("rovermarl.") else
                      f"is not a class of the config group {group} ({', '.join(sorted(allow.classes[group]))})")
             raise errors.ConfigError(key, node["_target_"], f"{where}, in {source}: {REFUSE}")
         slots = allow.slots.get((group, target), {})
@@ -119,13 +112,6 @@ def _walk(node, path: str, group: str | None, allow: Groups, legacy: bool, sourc
             continue
         inner = (str(key) if str(key) in allow.classes else None) if not path else slots.get(str(key))
         _walk(value, _join(path, key), inner, allow, legacy, source)
-
-
-def _canonical(target, legacy: bool):
-    """``target`` as the runner builds it (a pre-``algorithm`` config's ``rovermarl.evolution.*`` renamed)."""
-    if legacy and isinstance(target, str) and target.startswith(LEGACY[0]):
-        return LEGACY[1] + target[len(LEGACY[0]):]
-    return target
 
 
 def _strings(node, path: str):

@@ -1,10 +1,5 @@
-"""Checks of a composed job config, run before any work (and before Ray starts).
-
-The run-level sections are typed configs: a dataclass each (:class:`Job`, :class:`Checkpoint`, :class:`Record`,
-:class:`Ray`, :class:`Budget`; ``evaluation``: :class:`rovermarl.runner.chunk.EvaluationConfig`; ``parallel``: the
-backend, :class:`rovermarl.parallel.Backend`) whose fields are the section's keys and whose ``__post_init__`` is the
-one home of their checks; the section's yaml in ``conf/`` is the one home of its defaults.
-"""
+"""Checks of a composed job config, run before any work (and before Ray starts). The run-level sections are typed
+configs, the one home of their checks (docs/ARCHITECTURE.md, "Configs: one home per default and per check")."""
 
 from __future__ import annotations
 
@@ -140,8 +135,7 @@ def apply_budget(cfg: DictConfig, algorithm, fresh_ic: bool) -> bool:
     generations as fit, at :meth:`Algorithm.agent_steps_per_generation
     <rovermarl.algorithms.base.Algorithm.agent_steps_per_generation>` each (19,200,000 agent-steps = 20,000
     generations of CC-(1+1)-ES with 4 rovers, 1,818 of the CCEA's 11 team evaluations). Returns whether it did."""
-    node = cfg.get("budget")
-    steps = None if node is None else _section("budget", Budget, cfg).agent_steps
+    steps = None if cfg.get("budget") is None else _section("budget", Budget, cfg).agent_steps
     if steps is None:
         return False
     per = algorithm.agent_steps_per_generation(fresh_ic)
