@@ -2,16 +2,15 @@
 
 numba's own cache (``cache=True``) stamps a compiled function with its own file only: after an edit of a callee in
 another file (``math.py``'s ``tanh`` under ``stages.py``'s ``sense``, say) it loads the old machine code. Every module
-of rovermarl that compiles imports ``njit`` from here instead; this module first puts :class:`SourcesLocator` in front
-of numba's cache locators, so that a cached function's stamp is a hash of every numba-using source it may reach:
-all of rovermarl's, and for a plug-in outside the package (a world, an operator) also those of its own directory.
-Editing any of them recompiles what depends on it, in the package or in a plug-in. A build with debug info
-(``NUMBA_DEBUGINFO``, ``NUMBA_ENABLE_PROFILING``: not vectorised) is stamped apart, so later plain runs never load it.
+of rovermarl that compiles imports ``njit`` from here instead; this module puts :class:`SourcesLocator` in front of
+numba's cache locators, so that a cached function's stamp is a hash of every numba-using source it may reach: all of
+rovermarl's, and for a plug-in outside the package (a world, an operator) those of its own directory too. A debug
+build (``NUMBA_DEBUGINFO``, ``NUMBA_ENABLE_PROFILING``: not vectorised) is stamped apart, so plain runs never load it.
 The cache stays where numba puts it (the package's ``__pycache__`` dirs, or ``NUMBA_CACHE_DIR``).
 
-Every compile that numba does (a cache miss) is seen by a listener of numba's ``numba:compile`` events: the first of a
-process in a world's kernel or loop says so on stderr, naming the world and the function (:func:`name_compiled`),
-and :func:`compile_seconds` adds up their time, so that a job's throughput leaves it out.
+A listener of numba's ``numba:compile`` events sees every compile (a cache miss): the first of a process in a world's
+kernel or loop says so on stderr, naming the world and the function (:func:`name_compiled`), and
+:func:`compile_seconds` adds up their time, so that a job's throughput leaves it out.
 """
 
 from __future__ import annotations
@@ -44,10 +43,13 @@ def say_if_cold(dispatcher, args: tuple, what: str) -> None:
     except Exception:  # numba's internals moved: say nothing rather than fail the call
         return
     if not cached:
-        said()
-        print(f"rovermarl: numba compiles {what} for this machine now (about 20 s on an idle core, once; later "
-              "processes load it from the cache; python -m rovermarl.warmup compiles ahead)", file=sys.stderr,
-              flush=True)
+        _notice(what)
+
+
+def _notice(what: str) -> None:
+    said()
+    print(f"rovermarl: numba compiles {what} for this machine now (about 20 s on an idle core, once; later processes "
+          "load it from the cache; python -m rovermarl.warmup compiles ahead)", file=sys.stderr, flush=True)
 
 
 def said() -> None:
@@ -56,8 +58,7 @@ def said() -> None:
 
 
 def name_compiled(module: str, name: str) -> None:
-    """Name the compiled code of ``module`` in the compile notice (a world's generated kernel: ``"Battery's
-    kernel"``)."""
+    """Name ``module``'s compiled code in the compile notice (a world's generated kernel: ``"Battery's kernel"``)."""
     _NAMES[module] = name
 
 
@@ -85,10 +86,7 @@ class _Compiles(event.Listener):
             fn = getattr(ev.data.get("dispatcher"), "py_func", None)
             module = getattr(fn, "__module__", "") or ""
             if not _SAID and module in _NAMES:                   # a world's kernel or loop: the long compiles
-                said()
-                print(f"rovermarl: numba compiles {compiled_name(module)} ({fn.__name__}) for this machine now "
-                      "(about 20 s on an idle core, once; later processes load it from the cache; python -m "
-                      "rovermarl.warmup compiles ahead)", file=sys.stderr, flush=True)
+                _notice(f"{compiled_name(module)} ({fn.__name__})")
 
     def on_end(self, ev):
         cls = type(self)

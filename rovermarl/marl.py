@@ -1,26 +1,17 @@
 """MAPPO and IPPO from TorchRL (the ``[marl]`` extra) as algorithm plug-ins: ``algorithm=mappo``, ``algorithm=ippo``.
 
-Both train one actor shared by every rover (parameter sharing, a homogeneous team, as ``algorithm=ppo``), the world's
-own policy ``sensors -> tanh(hidden) -> tanh(2)`` (SPEC section 4): TorchRL's ``MultiAgentMLP`` (``share_params``,
-not centralised) gives ``loc``, TorchRL's ``TanhNormal`` samples ``tanh(loc + scale * eps)`` with a learned
-state-independent log-std, so the deterministic policy ``tanh(loc)`` is a genome (P,) the world scores as every
-other learner's team: the team is N copies of it, its score after each generation is F on the run's initial
-conditions, its held-out score F on the run's 256 held-out ones (the runner's, not a library logger's).
-
-The two differ only in the critic (TorchRL's ``MultiAgentMLP``, tanh layers ``value_hidden``, shared parameters,
-each rover's sensors and the step t / T): MAPPO's is centralised (each rover's value reads every rover's
-observations), IPPO's decentralised (its own only). The loss is TorchRL's ``ClipPPOLoss`` with its ``GAE``; the
-update is ``n_epochs`` passes of ``minibatches`` shuffled minibatches with Adam and gradient clipping, the advantages
-normalised per minibatch and rover (as TorchRL's multi-agent PPO losses do).
+Both train one actor shared by every rover, the world's own policy ``sensors -> tanh(hidden) -> tanh(2)`` (SPEC
+section 4): TorchRL's ``MultiAgentMLP`` gives ``loc``, its ``TanhNormal`` samples ``tanh(loc + scale * eps)`` with a
+learned state-independent log-std, so the deterministic policy ``tanh(loc)`` is a genome (P,) scored as every other
+learner's team is (N copies of it). They differ only in the critic (tanh layers ``value_hidden`` over each rover's
+sensors and t / T): MAPPO's is centralised (every rover's observations), IPPO's decentralised (its own). The update is
+TorchRL's ``ClipPPOLoss`` with its ``GAE``: ``n_epochs`` passes of ``minibatches`` shuffled minibatches, Adam and
+gradient clipping, the advantages normalised per minibatch and rover (as TorchRL's multi-agent PPO losses do).
 
 One generation is one iteration: ``n_steps`` steps (a multiple of ``env.steps``: each iteration starts on fresh
-episodes) of ``num_envs`` environments of :class:`rovermarl.vector.VectorEnv` stepped in one call each (no
-per-environment Python), ``num_envs x n_steps x N`` agent-steps, then the update. Resume is bit-identical: the state
-holds the networks' and Adam's tensors as arrays and the torch and environment random states (one torch thread).
-
-Training starts and the final team follow ``algorithm=ppo``'s rules (:mod:`rovermarl.sb3`): ``fixed``
-(``evaluation.fresh_ic=false``) starts the environments from the run's own initial conditions in turn, ``fresh``
-from new ones; ``final_team`` is ``last`` or ``best`` (:func:`rovermarl.algorithms.final_team.keep_best`).
+episodes) of ``num_envs`` environments of :class:`rovermarl.vector.VectorEnv`, then the update. Training starts and
+``final_team`` follow ``algorithm=ppo``'s rules (:mod:`rovermarl.sb3`). Resume is bit-identical: the state holds the
+networks' and Adam's tensors as arrays and the torch and environment random states (one torch thread).
 
 >>> # python -m rovermarl.train algorithm=mappo budget.agent_steps=1536000 setup=duo   # doctest: +SKIP
 """
@@ -45,7 +36,7 @@ except ModuleNotFoundError as _e:
 from rovermarl import errors, policy
 from rovermarl.algorithms.base import RunState, generator
 from rovermarl.algorithms.final_team import FINAL_TEAMS, SharedActor, train_starts
-from rovermarl.torch_state import adam_arrays, load_adam, seeded
+from rovermarl.torch_state import RunRng, adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 
 A = "agents"                                     # TorchRL's group of per-agent entries: (B, N, ...) under it
@@ -86,7 +77,6 @@ class MAPPO(SharedActor):
     their critic and library, not in their settings."""
 
     state_type = MARLState
-
     centralised = True
 
     def __init__(self, world, num_envs: int = 256, n_steps: int = 15, minibatches: int = 8, n_epochs: int = 5,
@@ -126,8 +116,7 @@ class MAPPO(SharedActor):
         return self.num_envs * self.n_steps * self.world.n_rovers
 
     def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        """Every training step is its own (the scoring of its deterministic team each generation is a team
-        evaluation besides)."""
+        """Every training step is its own (its team's scoring each generation is a team evaluation besides)."""
         return self.agent_steps_per_generation(fresh_ic)
 
     # ---- the networks ------------------------------------------------------------------------------------------
@@ -153,13 +142,10 @@ class MAPPO(SharedActor):
         loss.make_value_estimator(ValueEstimators.GAE, gamma=self.gamma, lmbda=self.lmbda)
         return loss
 
-    def _named(self, loss) -> dict:
-        return dict(loss.named_parameters())
-
     # ---- the contract ------------------------------------------------------------------------------------------
     def _init(self, streams, evaluate):
         seed = int(np.random.default_rng(streams.algorithm).integers(0, 2**63))
-        with _Torch(seeded(seed)) as rng:
+        with RunRng(seeded(seed)) as rng:
             loss = self._loss()
             state = self._save(loss, None, rng.state(), np.random.default_rng(streams.mutation).bit_generator.state)
         return state, self._first(state, evaluate)
@@ -173,7 +159,7 @@ class MAPPO(SharedActor):
     def _advance(self, state, generation, n, evaluate, observer):
         score, score_before, best = np.empty(n), float(state.score), state.best
         env = VectorEnv(self.num_envs, world=self.world, time_feature=True, starts=train_starts(evaluate))
-        with _Torch(state.torch) as rng:
+        with RunRng(state.torch) as rng:
             loss = self._loss()                          # its initial weights are replaced below
             rng.restore(state.torch)
             opt = self._load(loss, state)
@@ -217,8 +203,7 @@ class MAPPO(SharedActor):
             with torch.no_grad(), set_exploration_type(ExplorationType.RANDOM):   # sampled (the default: its mode)
                 actor(td)
             nxt, rew, term, _, infos = env.step(td[A, "action"].numpy())
-            last = "final_obs" in infos
-            nd = _agents(infos["final_obs"] if last else nxt, b, n)
+            nd = _agents(infos.get("final_obs", nxt), b, n)              # the episodes' last observations
             flags = torch.from_numpy(term).unsqueeze(-1)
             nd.update({"reward": torch.from_numpy(rew.astype(np.float32)).unsqueeze(-1), "done": flags.clone(),
                        "terminated": flags})
@@ -229,13 +214,13 @@ class MAPPO(SharedActor):
 
     # ---- the state as arrays -----------------------------------------------------------------------------------
     def _save(self, loss, opt, torch_state, env_rng, cursor: int = 0) -> MARLState:
-        named = self._named(loss)
+        named = dict(loss.named_parameters())
         adam = adam_arrays(named, opt.state if opt is not None else {})
         return MARLState(params={k: v.detach().numpy().copy() for k, v in named.items()}, adam=adam,
                          torch=torch_state, env_rng=env_rng, cursor=int(cursor), score=0.0)
 
     def _load(self, loss, state) -> torch.optim.Adam:
-        named = self._named(loss)
+        named = dict(loss.named_parameters())
         if set(named) != set(state.params):
             raise errors.ConfigError("algorithm", type(self).__name__, "the checkpoint's networks are not this "
                                      "configuration's (another torchrl version or other settings)")
@@ -260,26 +245,3 @@ def _agents(obs: np.ndarray, b: int, n: int) -> TensorDict:
     o = torch.from_numpy(np.asarray(obs, np.float32))
     return TensorDict({"observation": o, "sensors": o[..., :-1]}, batch_size=[b, n])
 
-
-class _Torch:
-    """The run's torch random state in force inside the block, the caller's restored after; one torch thread (the
-    run's process has its core; results bit-identical)."""
-
-    def __init__(self, run_state: np.ndarray):
-        self.run = run_state
-
-    def __enter__(self):
-        self.keep = (torch.get_rng_state(), torch.get_num_threads())
-        self.restore(self.run)
-        torch.set_num_threads(1)
-        return self
-
-    def restore(self, run_state: np.ndarray) -> None:
-        torch.set_rng_state(torch.from_numpy(np.array(run_state, dtype=np.uint8)))
-
-    def state(self) -> np.ndarray:
-        return torch.get_rng_state().numpy().copy()
-
-    def __exit__(self, *exc):
-        torch.set_rng_state(self.keep[0])
-        torch.set_num_threads(self.keep[1])

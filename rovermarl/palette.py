@@ -3,8 +3,7 @@
 Rovers take matplotlib's ``tab10`` cycle (rover ``i`` is ``C{i % 10}``); POIs are coloured by coupling, in hues
 that no rover of a shipped world uses (coupling 2's purple is C4, but no world with five or more rovers has
 coupling-2 POIs; three or more: a yellow outside the cycle, for the coupling family's 6-12 rovers), so a POI is never
-mistaken for a rover. The Rerun plots add the score, series and occupancy
-colours below.
+mistaken for a rover. The Rerun plots add the score, series and occupancy colours below.
 
 >>> rover_hex(1), poi_hex(2)
 ('#ff7f0e', '#9467bd')
@@ -37,8 +36,7 @@ def poi_hex(coupling: int) -> str:
 
 def rgb(hex_colour: str) -> tuple[int, int, int]:
     """``'#ff7f0e'`` -> ``(255, 127, 14)``."""
-    h = hex_colour.lstrip("#")
-    return int(h[0:2], 16), int(h[2:4], 16), int(h[4:6], 16)
+    return tuple(bytes.fromhex(hex_colour.lstrip("#")))
 
 
 def rover_rgb(n: int) -> np.ndarray:

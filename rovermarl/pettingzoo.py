@@ -1,52 +1,29 @@
 """The rover world as a PettingZoo environment, for any learner (RLlib, BenchMARL, TorchRL, CleanRL-style scripts).
 
 ==================== ===========================================================================================
-Import               ``from rovermarl.pettingzoo import parallel_env, env``
-Actions              Continuous
-Parallel API         Yes
-Manual control       No
+Import               ``from rovermarl.pettingzoo import parallel_env, env`` (the parallel API; AEC through it)
 Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by default)
-Action shape         (2,): ``(a0, a1)`` in [-1, 1] (speed, turn; SPEC section 3), clipped to that box
-Action values        ``Box(-1, 1, (2,), float64)`` (float32 under ``env.dtype=float32``, as the observations)
-Observation shape    (3P + 2N,): 38 for the 10 POIs and 4 rovers of every paper setup (SPEC section 2); with
+Actions              ``Box(-1, 1, (2,))`` in ``env.dtype``: ``(a0, a1)`` (speed, turn; SPEC section 3), clipped to it
+Observations         ``Box`` (3P + 2N,) in ``env.dtype``: 38 in every paper setup (SPEC section 2); with
                      ``time_feature=True`` the step t / T as a last number (39)
-Observation values   ``Box`` in ``env.dtype``: distances / sensor range in [0, 1], bearings / pi in [-1, 1], POI types
-State                ``state()``: every rover's x, y, cos and sin of its heading, t / T, and the episode's layout
-                     (a world plug-in's), float64; ``state_space`` its ``Box``
+State                ``state()`` (``state_space``): every rover's x, y, cos and sin of its heading, t / T, and the
+                     episode's layout (a world plug-in's); float64
 Episode              ``env.steps`` (15) steps (``max_cycles`` sets it), then every agent is terminated
 Reward               the team's, the same for every agent (SPEC section 1, ``env.reward``): ``final`` pays the team
                      return at the last step and 0 before; a per-step reading pays the growth of its running value
                      (``mean_step``: each step's return / T), so the rewards sum to the episode's return
 ==================== ===========================================================================================
 
-Why termination and not truncation at the horizon: the task is finite by definition (the paper scores the positions
-after step T), nothing follows step T and the reward of the last step is the last there is, so a learner must not
-bootstrap a value beyond it (truncation would tell it to). Give the policy the time (``time_feature=True``) and the
-episode is a Markov one with a terminal step.
+Termination, not truncation, at the horizon: the task is finite by definition (the paper scores the positions after
+step T), so a learner must not bootstrap a value beyond it. With ``time_feature=True`` the episode is Markov.
 
-``parallel_env(setup="solo", **overrides)`` builds the world as :func:`rovermarl.make_world` does: the same defaults,
-the same ``env.*`` options (``reward``, ``speed``, ``poi_type``, ``dtype``, ``n_rovers``, ``steps``, ...).
-``reset(seed=s)`` (``s`` an integer >= 0; anything else is refused with a ``ValueError``) starts from
-``World.initial_conditions(seed=s, n=1)``, so an episode of the environment is episode 0 of those initial conditions
-in :class:`~rovermarl.env.World` (``World.rollout`` replays it); ``reset()`` without a seed draws the next start from
-the same stream (the env stream of :mod:`rovermarl.env.streams`). The environment is the one-environment view of
-:class:`rovermarl.vector.VectorEnv` (B = 1, no auto-reset): its step, reward, observation bounds and seeds are that
-env's, which runs the world's own compiled hooks (``World.compiled``; :mod:`rovermarl.env.kernel.hooks`), the
-rollout's dynamics, one implementation, for the paper's world and any world plug-in (``RoverParallelEnv(world)``).
-
-``infos[agent]``: ``occupancy`` (P,) rovers within the observation radius of each POI, ``return`` the team's return
-so far in the world's reading (the episode's return after the last step, bit-identical to ``World.returns``), and
-``step``. ``step`` refuses, before it changes anything, an actions dict that names an unknown agent or holds an
-action that is not 2 finite real numbers (``nan``, ``inf``, complex values, another shape), with a ``ValueError``
-naming the agent; the AEC form (:func:`env`) refuses the action at that agent's own step.
-``render_mode="rgb_array"`` draws the POIs and the rovers' paths so far with matplotlib; ``"human"`` shows the same in
-a window where there is a display, and otherwise says once (a warning) that it cannot and draws nothing.
-
->>> from rovermarl.pettingzoo import parallel_env
->>> e = parallel_env()
->>> obs, infos = e.reset(seed=0)
->>> e.agents, obs["rover_0"].shape
-(['rover_0', 'rover_1', 'rover_2', 'rover_3'], (38,))
+This is the one-environment view of :class:`rovermarl.vector.VectorEnv` (B = 1, no auto-reset): its step, reward,
+observation bounds and seeds are that env's (the rollout's compiled hooks), for any world (``RoverParallelEnv(world)``;
+``parallel_env`` builds one as :func:`rovermarl.make_world` does). ``reset(seed=s)`` (an integer >= 0, else a
+``ValueError``) starts from ``World.initial_conditions(seed=s, n=1)`` (``World.rollout`` replays the episode);
+``reset()`` draws the next start of that stream. ``infos[agent]``: ``occupancy`` (P,) rovers within the observation
+radius of each POI, ``return`` the team's return so far (after the last step bit-identical to ``World.returns``) and
+``step``. docs/GUIDE.md ("For RL users") has a tested example.
 """
 
 from __future__ import annotations
@@ -117,6 +94,7 @@ class RoverParallelEnv(ParallelEnv):
         self.env = VectorEnv(1, world=world, time_feature=time_feature, autoreset=False)   # the one step
         self.possible_agents = [f"rover_{i}" for i in range(world.n_rovers)]
         self.agents: list[str] = []
+        self._window, self._warned = None, False                        # human rendering's
         n_state = 4 * world.n_rovers + 1 + world.layout_dim
         self.state_space = spaces.Box(-np.inf, np.inf, (n_state,), dtype=np.float64)
         f = self._f = self.env.dtype.type                                 # env.dtype: the kernel's precision
@@ -167,13 +145,14 @@ class RoverParallelEnv(ParallelEnv):
         changes."""
         if not self.agents:
             raise RuntimeError("the episode is over: call reset()")
-        w = self.world
         if not isinstance(actions, Mapping):
             raise ValueError(f"actions must be a dict of agent -> action, got {type(actions).__name__}")
         for key in actions:
             if key not in self.possible_agents:
-                raise ValueError(f"actions[{key!r}]: no such agent; the agents are {self._agent_names()}")
-        a = np.zeros((1, w.n_rovers, 2), self._f)
+                p = self.possible_agents
+                names = ", ".join(p) if len(p) <= 4 else f"{p[0]} ... {p[-1]}"
+                raise ValueError(f"actions[{key!r}]: no such agent; the agents are {names}")
+        a = np.zeros((1, self.world.n_rovers, 2), self._f)
         for i, agent in enumerate(self.possible_agents):
             if agent in actions:
                 a[0, i] = self.check_action(agent, actions[agent])
@@ -209,10 +188,6 @@ class RoverParallelEnv(ParallelEnv):
             raise refuse(f"is not finite ({_show(x)})")
         return np.clip(x.astype(np.float64), ACTION_LOW, ACTION_HIGH).astype(self._f)
 
-    def _agent_names(self) -> str:
-        agents = self.possible_agents
-        return ", ".join(agents) if len(agents) <= 4 else f"{agents[0]} ... {agents[-1]}"
-
     def _per_agent(self, obs: np.ndarray) -> dict:
         """Observations (1, N, D) as a dict of agent -> (D,)."""
         return {agent: obs[0, i].copy() for i, agent in enumerate(self.possible_agents)}
@@ -226,7 +201,6 @@ class RoverParallelEnv(ParallelEnv):
         info = {"occupancy": count[0], "return": self.value, "step": self.t}
         return {agent: dict(info) for agent in self.possible_agents}
 
-    # ---- drawing ---------------------------------------------------------------------------------------------
     def state(self) -> np.ndarray:
         """The global state (for a centralised critic): every rover's x, y, cos and sin of its heading, then t / T,
         then the episode's layout (K,): float64 (``state_space``)."""
@@ -234,13 +208,14 @@ class RoverParallelEnv(ParallelEnv):
         rovers = np.stack([*self.xy[0].astype(np.float64).T, np.cos(h), np.sin(h)], axis=1).ravel()
         return np.concatenate([rovers, [self.t / self.world.steps], self.layout])
 
+    # ---- drawing ---------------------------------------------------------------------------------------------
     def render(self):
         """``rgb_array``: an (H, W, 3) uint8 image of the POIs and the rovers' paths so far; ``human``: the same in a
         window (None), where there is a display."""
         if self.render_mode is None:
             return None
         if self.render_mode == "human":
-            return self._show()
+            return self._window_show()
         from rovermarl.analysis.draw import new_figure, scene
         fig = new_figure(4.0, 4.0)
         ax = fig.add_subplot()
@@ -248,13 +223,12 @@ class RoverParallelEnv(ParallelEnv):
         scene(ax, self.world, self.path[None, : self.t + 1], lim, lw=1.5, ms=6, layout=self.layout)
         ax.set_title(f"step {self.t}/{self.world.steps}   return {self.value:g}", fontsize=9)
         fig.canvas.draw()
-        image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
-        return image
+        return np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
 
-    def _show(self) -> None:
+    def _window_show(self) -> None:
         """The ``rgb_array`` image in a matplotlib window; without a display one warning, then nothing."""
         if not _display():
-            if not getattr(self, "_warned", False):
+            if not self._warned:
                 warnings.warn("render_mode='human': no display here (no DISPLAY or WAYLAND_DISPLAY); nothing is shown."
                               " Use render_mode='rgb_array' for images", stacklevel=2)
                 self._warned = True
@@ -265,16 +239,15 @@ class RoverParallelEnv(ParallelEnv):
             image = self.render()
         finally:
             self.render_mode = "human"
-        if getattr(self, "_window", None) is None:
+        if self._window is None:
             self._window = plt.figure("rovermarl").add_subplot()
         self._window.clear()
         self._window.imshow(image)
         self._window.axis("off")
         plt.pause(1.0 / self.metadata["render_fps"])
-        return None
 
     def close(self):
-        if getattr(self, "_window", None) is not None:
+        if self._window is not None:
             import matplotlib.pyplot as plt
             plt.close(self._window.figure)
             self._window = None
@@ -287,10 +260,8 @@ def _display() -> bool:
 
 def _show(value, width: int = 60) -> str:
     """``value`` on one short line, for an error message."""
-    if isinstance(value, np.ndarray):
-        text = np.array2string(value, separator=", ", threshold=8, max_line_width=10**6)
-    else:
-        text = repr(value)
+    text = (np.array2string(value, separator=", ", threshold=8, max_line_width=10**6) if isinstance(value, np.ndarray)
+            else repr(value))
     text = " ".join(text.split())
     return text if len(text) <= width else text[:width - 3] + "..."
 

@@ -110,15 +110,12 @@ def default_out(path: Path) -> Path:
 
 
 class PlotCallback(Callback):
-    """Hydra callback: draw the figures into ``<sweep dir>/figures`` when a multirun ends.
-
-    Register it in ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``.
-    Plotting problems are logged as a warning and never raised, so a finished sweep is never marked failed.
-    Only the job dirs this launch ran are read (:func:`own_jobs`, from the launch's own overrides, not from any file
-    of the sweep dir): their world plug-ins are the ones the command line named, so they are built; a job dir
-    planted beside them is not read.
-    ``formats`` None: :data:`rovermarl.analysis.stamp.FORMATS`. matplotlib is imported when the sweep ends, so
-    every job's start-up is spared it.
+    """Hydra callback: draw the figures into ``<sweep dir>/figures`` when a multirun ends (register it in
+    ``conf/config.yaml`` as ``hydra.callbacks.plot._target_: rovermarl.plot.PlotCallback``). Problems are logged as a
+    warning and never raised, so a finished sweep is never marked failed. Only the job dirs this launch ran are read
+    (:func:`own_jobs`, from the launch's own overrides, not from any file of the sweep dir): their world plug-ins are
+    the ones the command line named, so they are built; a job dir planted beside them is not read. ``formats`` None:
+    :data:`rovermarl.analysis.stamp.FORMATS`. matplotlib is imported when the sweep ends, sparing every job's start.
     """
 
     def __init__(self, formats: Sequence[str] | None = None, thresholds: dict | None = None) -> None:

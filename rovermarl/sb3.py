@@ -1,31 +1,25 @@
-"""stable-baselines3 on the batched environment: its ``VecEnv`` view (:class:`VecEnv`) and PPO with parameter sharing
-as an algorithm plug-in (:class:`PPO`, ``algorithm=ppo``). Needs the ``[rl]`` extra: ``pip install -e ".[rl]"``.
+"""stable-baselines3 on the batched environment (the ``[rl]`` extra: ``pip install -e ".[rl]"``): its ``VecEnv`` view
+(:class:`VecEnv`) and PPO with parameter sharing as an algorithm plug-in (:class:`PPO`, ``algorithm=ppo``).
 
 ``VecEnv`` is :class:`rovermarl.vector.VectorEnv` with the agents flattened: agent i of environment b is
-sub-environment ``b*N + i``, all sharing one policy (parameter sharing), observations (B*N, D), actions (B*N, 2),
-rewards and dones (B*N,); an episode's last step returns the next episode's first observations, the last ones in
+sub-environment ``b*N + i``, all sharing one policy, observations (B*N, D), actions (B*N, 2), rewards and dones
+(B*N,); an episode's last step returns the next episode's first observations, the last ones in
 ``infos[j]["terminal_observation"]``. Its defaults are :data:`rovermarl.vector.DEFAULTS` (one set for every view).
 
 >>> from stable_baselines3 import PPO
 >>> from rovermarl.sb3 import VecEnv
 >>> PPO("MlpPolicy", VecEnv(setup="solo"), n_steps=15).learn(768_000 // 4)  # doctest: +SKIP
 
-:class:`PPO` trains SB3's PPO whose actor is the world's own policy, ``obs -> tanh(hidden) -> tanh(2)`` (SPEC
-section 4), as the mean of a Gaussian with a learned log-std, and a separate tanh value network. Its deterministic
-policy is therefore a genome (P,) the world scores as every other learner's team is scored: the team is N copies of
-it, its score after each generation (one PPO iteration: ``n_steps`` steps of ``num_envs`` environments, then the
-update) is F on the run's initial conditions, its held-out score F on the run's held-out ones. The critic alone also
-sees the step t / T (the time feature): the genome's inputs are the world's sensors, and without t the value of a
-state whose reward comes at the episode's last step cannot be learned (PPO then learns nothing).
+:class:`PPO`'s actor is the world's own policy, ``obs -> tanh(hidden) -> tanh(2)`` (SPEC section 4), as the mean of a
+Gaussian with a learned log-std, so its deterministic policy is a genome (P,) scored as every learner's team is (N
+copies of it; docs/LEARNERS.md). One generation is one PPO iteration: ``n_steps`` steps of ``num_envs`` environments,
+then the update. The critic alone also sees the step t / T: the reward comes at an episode's last step, and without t
+its value cannot be learned (PPO then learns nothing).
 
-Training starts (SPEC section 8's regimes, the same for every learner): with ``evaluation.fresh_ic=false`` (``fixed``)
-the environments start from the run's own initial conditions, taken in turn (``VectorEnv(starts=...)``); with
-``evaluation.fresh_ic=true`` (``fresh``) from ever new ones drawn from the run's environment stream, and each
-generation's score is measured on that generation's initial conditions (``Evaluator.draw``). ``final_team``: ``last``
-keeps the last iterate; ``best`` keeps the best iterate so far as the run's team, an iterate replacing it when it
-scores at least as well on the same initial conditions (under ``fresh`` the kept one is scored again beside it, as
-CC-(1+1)-ES re-scores its parents). Resume is
-bit-identical: the state holds the network and Adam moments as arrays and the torch, numpy-global and environment
+Training starts (SPEC section 8's regimes; docs/LEARNERS.md, "Like with like"): the run's own initial conditions in
+turn under ``evaluation.fresh_ic=false`` (``VectorEnv(starts=...)``), new ones from the run's environment stream
+under ``true``. ``final_team`` is ``last`` or ``best`` (:func:`rovermarl.algorithms.final_team.keep_best`). Resume
+is bit-identical: the state holds the network and Adam moments as arrays and the torch, numpy-global and environment
 random states, and each iteration starts on fresh episodes (``n_steps`` is a multiple of ``env.steps``).
 """
 
@@ -49,7 +43,7 @@ from rovermarl import errors, policy
 from rovermarl.algorithms.base import RunState, generator
 from rovermarl.algorithms.final_team import FINAL_TEAMS, SharedActor, train_starts
 from rovermarl.env import World
-from rovermarl.torch_state import adam_arrays, load_adam, seeded
+from rovermarl.torch_state import RunRng, adam_arrays, load_adam, seeded
 from rovermarl.vector import DEFAULTS, VectorEnv
 
 
@@ -178,8 +172,8 @@ class PPO(SharedActor):
         self.kwargs = {"n_steps": self.n_steps, "batch_size": errors.integer("batch_size", batch_size, 2),
                        "n_epochs": errors.integer("n_epochs", n_epochs, 1),
                        "learning_rate": errors.number("learning_rate", learning_rate, 0, lo_open=True),
-                       "gamma": errors.number("gamma", gamma, 0, 1), "gae_lambda": errors.number("gae_lambda",
-                                                                                                 gae_lambda, 0, 1),
+                       "gamma": errors.number("gamma", gamma, 0, 1),
+                       "gae_lambda": errors.number("gae_lambda", gae_lambda, 0, 1),
                        "clip_range": errors.number("clip_range", clip_range, 0, lo_open=True),
                        "ent_coef": errors.number("ent_coef", ent_coef), "vf_coef": errors.number("vf_coef", vf_coef),
                        "max_grad_norm": errors.number("max_grad_norm", max_grad_norm, 0, lo_open=True)}
@@ -200,8 +194,7 @@ class PPO(SharedActor):
         return self.num_envs * self.n_steps * self.world.n_rovers
 
     def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        """Every training step is its own (the scoring of its deterministic team each generation is a team
-        evaluation besides)."""
+        """Every training step is its own (its team's scoring each generation is a team evaluation besides)."""
         return self.agent_steps_per_generation(fresh_ic)
 
     def _model(self, starts=None):
@@ -210,10 +203,9 @@ class PPO(SharedActor):
 
     def _init(self, streams, evaluate):
         seeds = np.random.default_rng(streams.algorithm).integers(0, 2**63, 2)
-        with _Rng(seeded(int(seeds[0])), None) as rng:
+        with RunRng(seeded(int(seeds[0]))) as rng:
             model = self._model(train_starts(evaluate))
-            state = self._save(model, rng, env_rng=np.random.default_rng(streams.mutation).bit_generator.state,
-                               cursor=0)
+            state = self._save(model, rng, np.random.default_rng(streams.mutation).bit_generator.state, 0)
         state.numpy = np.random.RandomState(int(seeds[1]) % 2**32).get_state(legacy=False)
         return state, self._first(state, evaluate)
 
@@ -225,9 +217,9 @@ class PPO(SharedActor):
 
     def _advance(self, state, generation, n, evaluate, observer):
         score, score_before, best = np.empty(n), float(state.score), state.best
-        with _Rng(torch.get_rng_state().numpy(), None):
+        with RunRng(torch.get_rng_state().numpy()):
             model = self._model(train_starts(evaluate))   # its initial weights are replaced: the caller's RNG kept
-        with _Rng(state.torch, state.numpy) as rng:
+        with RunRng(state.torch, state.numpy) as rng:
             self._load(model, state)
             env = model.env.env
             env._rng, env.cursor = generator(state.env_rng), int(state.cursor)
@@ -242,39 +234,14 @@ class PPO(SharedActor):
         return state, {"score": score}
 
     def _save(self, model, rng, env_rng, cursor: int) -> PPOState:
-        opt = model.policy.optimizer.state
-        names = [name for name, _ in model.policy.named_parameters()]
-        adam = adam_arrays(dict(model.policy.named_parameters()), opt)
+        adam = adam_arrays(dict(model.policy.named_parameters()), model.policy.optimizer.state)
         params = {k: v.detach().numpy().copy() for k, v in model.policy.state_dict().items()}
-        assert list(adam) == names
-        return PPOState(params=params, adam=adam, torch=rng.state()["torch"], numpy=rng.state()["numpy"],
-                        env_rng=env_rng, cursor=int(cursor), score=0.0, timesteps=int(model.num_timesteps))
+        numpy = np.random.get_state(legacy=False)  # noqa: NPY002 - SB3 shuffles with it
+        return PPOState(params=params, adam=adam, torch=rng.state(), numpy=numpy, env_rng=env_rng, cursor=int(cursor),
+                        score=0.0, timesteps=int(model.num_timesteps))
 
     def _load(self, model, state) -> None:
         model.policy.load_state_dict({k: torch.from_numpy(np.array(v)) for k, v in state.params.items()})
         load_adam(dict(model.policy.named_parameters()), model.policy.optimizer.state, state.adam)
         model.num_timesteps = int(state.timesteps)
 
-
-class _Rng:
-    """The run's torch and numpy-global random states in force inside the block (SB3 draws from both), the caller's
-    restored after; one torch thread (the run's process has its core; results bit-identical)."""
-
-    def __init__(self, torch_state: np.ndarray, numpy_state: dict | None):
-        self.run = torch_state, numpy_state
-
-    def __enter__(self):
-        self.keep = (torch.get_rng_state(), np.random.get_state(legacy=False), torch.get_num_threads())  # noqa: NPY002 - SB3 shuffles with it
-        torch.set_rng_state(torch.from_numpy(np.array(self.run[0], dtype=np.uint8)))
-        if self.run[1] is not None:
-            np.random.set_state(self.run[1])  # noqa: NPY002 - SB3 shuffles with it
-        torch.set_num_threads(1)
-        return self
-
-    def state(self) -> dict:
-        return {"torch": torch.get_rng_state().numpy().copy(), "numpy": np.random.get_state(legacy=False)}  # noqa: NPY002 - SB3 shuffles with it
-
-    def __exit__(self, *exc):
-        torch.set_rng_state(self.keep[0])
-        np.random.set_state(self.keep[1])  # noqa: NPY002 - SB3 shuffles with it
-        torch.set_num_threads(self.keep[2])

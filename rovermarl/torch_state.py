@@ -1,6 +1,6 @@
-"""What the learners on torch (``rovermarl.sb3``, ``rovermarl.marl``) keep in a run's state as plain arrays, one
-source for both: Adam's moments per parameter and the torch generator's seeded state. Imports torch (the ``[rl]`` or
-``[marl]`` extra): only those modules import this one."""
+"""What the learners on torch (``rovermarl.sb3``, ``rovermarl.marl``) share, one source for both: Adam's moments per
+parameter and the torch generator's state as plain arrays for a run's state, and :class:`RunRng`, the run's random
+states in force. Imports torch (the ``[rl]`` or ``[marl]`` extra): only those modules import this one."""
 
 from __future__ import annotations
 
@@ -36,3 +36,31 @@ def seeded(seed: int) -> np.ndarray:
     out = torch.get_rng_state().numpy().copy()
     torch.set_rng_state(keep)
     return out
+
+
+class RunRng:
+    """The run's torch random state (and numpy's global one when given: SB3 shuffles with it) in force inside the
+    block, the caller's restored after; one torch thread (the run's process has its core; results bit-identical)."""
+
+    def __init__(self, torch_state: np.ndarray, numpy_state: dict | None = None):
+        self.run = torch_state, numpy_state
+
+    def __enter__(self):
+        self.keep = (torch.get_rng_state(), np.random.get_state(legacy=False), torch.get_num_threads())  # noqa: NPY002
+        self.restore(self.run[0])
+        if self.run[1] is not None:
+            np.random.set_state(self.run[1])  # noqa: NPY002 - SB3 shuffles with it
+        torch.set_num_threads(1)
+        return self
+
+    def restore(self, torch_state: np.ndarray) -> None:
+        torch.set_rng_state(torch.from_numpy(np.array(torch_state, dtype=np.uint8)))
+
+    def state(self) -> np.ndarray:
+        """The torch generator's state now (uint8 array)."""
+        return torch.get_rng_state().numpy().copy()
+
+    def __exit__(self, *exc):
+        torch.set_rng_state(self.keep[0])
+        np.random.set_state(self.keep[1])  # noqa: NPY002 - SB3 shuffles with it
+        torch.set_num_threads(self.keep[2])

@@ -1,40 +1,24 @@
 """The world as a batched environment for learners: B environments x N agents stepped in one compiled call.
 
-==================== ===========================================================================================
-Import               ``from rovermarl.vector import VectorEnv, GymVectorEnv``
-Agents               N rovers per environment (``env.n_rovers``, 4); B environments (``num_envs``)
-Observations         (B, N, D) in ``env.dtype``: the world's sensors (38 in the paper's world) and, with
-                     ``time_feature=True`` (the default), the step t / T as a last number (D = 39)
-Actions              (B, N, 2): ``(a0, a1)`` in [-1, 1] (speed, turn), clipped to that box
-Rewards              (B, N), the team's, the same for each agent: ``final`` pays the team return at the last step
-                     and 0 before; a per-step reading pays the growth of its running value (as the PettingZoo env)
-Episode              ``env.steps`` (15) steps, then every agent of every environment is terminated (all
-                     environments run in step; why termination: ``rovermarl.pettingzoo``)
-Auto-reset           same step: the step that terminates returns the next episode's first observations, the last
-                     ones in ``infos["final_obs"]`` and the episodes' returns in ``infos["final_return"]``
-                     (``autoreset=False``: the episodes stay over until ``reset()``)
-Defaults             :data:`DEFAULTS`, one set for both classes: B = 256 environments of ``setup="solo"``, with the
-                     time feature (a learner then sees a Markov episode with a terminal step)
-==================== ===========================================================================================
+:class:`VectorEnv` steps B environments of one world (any world plug-in: ``VectorEnv(world=...)``) in one compiled
+call (:func:`rovermarl.env.kernel.fused.env_step`, the rollout's own hooks), so a policy and initial conditions give
+the returns :meth:`World.returns` gives. Its observations (B, N, D), actions (B, N, 2) (speed, turn; clipped to
+[-1, 1]), rewards, terminations and truncations (B, N) are the PettingZoo env's (:mod:`rovermarl.pettingzoo`: the
+team's reward for every agent, every agent terminated after ``env.steps``, never truncated), batched; with
+``time_feature=True`` (the default) the step t / T is the last observation (D = 39 in the paper's world). Auto-reset
+is same-step: the step that terminates returns the next episodes' first observations, the last ones in
+``infos["final_obs"]`` and the episodes' returns in ``infos["final_return"]`` (``autoreset=False``: the episodes stay
+over until ``reset()``). :data:`DEFAULTS` is one set for every view: B = 256 environments of ``setup="solo"``, with
+the time feature.
 
-Each step is one compiled call (:func:`rovermarl.env.kernel.fused.env_step`: the world's own hooks, those of the
-rollout), so a policy and initial conditions give the episode returns :meth:`World.returns` gives. Any world plug-in
-works (``VectorEnv(world=...)``). ``reset(seed=s)`` draws the B starts of environment batch ``s`` from
-``World.initial_conditions(SeedSequence(s), n=B)`` (later resets and auto-resets continue that stream: the env stream
-of :mod:`rovermarl.env.streams`); ``seed`` may also be a list of B integers, environment b's starts then come from its
-own ``SeedSequence(seed[b])``; ``options={"ic": ic}`` starts from given initial conditions (e.g. ``World.run_ic``).
-``starts=ic`` (E initial conditions, e.g. a run's 16) makes every reset and auto-reset take its B starts from that set
-in turn, environment b of the c-th draw taking start ``(c * B + b) mod E`` (:attr:`cursor` counts the starts taken):
-how PPO trains on a run's fixed initial conditions.
-The PettingZoo env (:mod:`rovermarl.pettingzoo`) is the one-environment view of this step, without auto-reset.
-:class:`GymVectorEnv` is a Gymnasium ``VectorEnv`` view with the agents flattened (B*N sub-environments sharing one
-policy, as SuperSuit's parameter sharing does) for single-agent libraries.
-
->>> from rovermarl.vector import VectorEnv
->>> env = VectorEnv(num_envs=8)
->>> obs, infos = env.reset(seed=0)
->>> obs.shape
-(8, 4, 39)
+``reset(seed=s)`` draws the B starts from ``World.initial_conditions(SeedSequence(s), n=B)``, later resets and
+auto-resets continuing that stream (:mod:`rovermarl.env.streams`); B seeds give environment b the stream of
+``SeedSequence(seed[b])``; ``options={"ic": ic}`` starts from given initial conditions (e.g. ``World.run_ic``).
+``starts=ic`` (E initial conditions, e.g. a run's 16) makes every reset take its B starts from them in turn,
+environment b of the c-th draw taking start ``(c * B + b) mod E`` (:attr:`cursor` counts the starts taken): how PPO
+trains on a run's fixed initial conditions. :class:`GymVectorEnv` is the Gymnasium view with the agents flattened
+(B*N sub-environments sharing one policy, as SuperSuit's parameter sharing) for single-agent libraries; docs/GUIDE.md
+("For RL users") has tested examples.
 """
 
 from __future__ import annotations
@@ -66,8 +50,7 @@ class VectorEnv:
             low, high = np.append(low, 0.0), np.append(high, 1.0)
         self.obs_low, self.obs_high = low.astype(self.dtype), high.astype(self.dtype)   # (D,) each
         self._compiled = self.world.compiled
-        self._rng = np.random.default_rng()
-        self._rngs = None
+        self._rng, self._rngs = np.random.default_rng(), None
         self.starts, self.cursor = None, 0
         if starts is not None:
             self.starts = tuple(np.asarray(a) for a in starts)    # E initial conditions, taken in turn
