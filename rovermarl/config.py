@@ -22,19 +22,15 @@ _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?
 
 
 def quote_numeric_options(argv: list[str], groups: set[str] | None = None) -> list[str]:
-    """Quote integer values of config-group overrides so Hydra reads them as option names.
-
-    Hydra parses ``k=1`` as the int 1 and rejects it as a group override; ``k='1'`` is the string.
-    Plain comma lists are handled too: ``k=1,2,4,adaptive`` -> ``k='1','2','4',adaptive``.
-    Anything else (quoted values, ``choice(...)``, non-group keys) is passed through unchanged.
-    """
+    """Quote integer values of config-group overrides so Hydra reads them as option names (it parses ``k=1`` as the
+    int 1 and rejects it as a group override): ``k=1,2,4,adaptive`` -> ``k='1','2','4',adaptive``. Anything else
+    (quoted values, ``choice(...)``, non-group keys) is passed through unchanged."""
     groups = group_names() if groups is None else groups
     out = []
     for arg in argv:
         m = _GROUP_OVERRIDE.match(arg)
         if m and m["group"] in groups and not re.search(r"[\"'()\[\]{}]", m["value"]):
-            items = m["value"].split(",")
-            items = [f"'{v.strip()}'" if _INT.fullmatch(v.strip()) else v for v in items]
+            items = [f"'{v.strip()}'" if _INT.fullmatch(v.strip()) else v for v in m["value"].split(",")]
             arg = f"{m['prefix']}{m['group']}{m['at'] or ''}=" + ",".join(items)
         out.append(arg)
     return out
@@ -46,9 +42,8 @@ def _readable(text: str) -> str:
 
 def _naming(overrides) -> list[str]:
     """The overrides that name an output dir: those of settings that can change results, sorted."""
-    keep = [str(o) for o in overrides
-            if str(o).lstrip("+~").partition("=")[0].split(".")[0].split("@")[0] not in NOT_IN_DIR_NAMES]
-    return sorted(keep)
+    return sorted(str(o) for o in overrides
+                  if str(o).lstrip("+~").partition("=")[0].split(".")[0].split("@")[0] not in NOT_IN_DIR_NAMES)
 
 
 def dirname(task_overrides) -> str:
@@ -84,14 +79,11 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
         parsed = OverridesParser.create().parse_overrides(argv)
     except HydraException as e:
         raise errors.ConfigError("override", " ".join(argv), _one_line(e)) from None
-    if multirun:
-        jobs = hydra_compat.split_sweep(parsed)
-    else:
-        sweeps = [o for o in parsed if o.is_sweep_override()]
-        if sweeps:
-            key, _, value = sweeps[0].input_line.partition("=")
-            raise errors.ConfigError(key, _readable(value), "is a sweep; add -m (--multirun) to run several jobs")
-        jobs = [list(argv)]
+    sweeps = [o for o in parsed if o.is_sweep_override()]
+    if sweeps and not multirun:
+        key, _, value = sweeps[0].input_line.partition("=")
+        raise errors.ConfigError(key, _readable(value), "is a sweep; add -m (--multirun) to run several jobs")
+    jobs = hydra_compat.split_sweep(parsed) if multirun else [list(argv)]
     for job in jobs:
         _check_group_values(job)
     if config_dir:
@@ -159,11 +151,7 @@ def _composition_error(e: Exception, job: list[str], config_name: str = "config"
 
 
 def _value_of(key: str, job: list[str]):
-    for arg in job:
-        k, _, v = arg.partition("=")
-        if k.lstrip("+~") == key:
-            return v
-    return None
+    return next((v for k, _, v in (arg.partition("=") for arg in job) if k.lstrip("+~") == key), None)
 
 
 def _one_line(e: Exception) -> str:
@@ -186,21 +174,19 @@ _PLAIN = (bool, int, float, str)
 def overrides_of(job_dir: Path) -> list[str]:
     """The overrides that recompute the job of ``job_dir``, each one allow-listed (:func:`allowed`): its
     ``.hydra/overrides.yaml`` (a job the CLI ran), else what its committed ``config.yaml`` and ``summary.json``
-    (``choices``) hold that the packaged defaults do not (compact results). Every file is read through
-    :mod:`rovermarl.record.safe_read` (its schema); the dir's name is never read. One-line
-    :class:`~rovermarl.errors.ConfigError` or ``OSError`` for anything else."""
+    (``choices``) hold that the packaged defaults do not (compact results). Files are read through
+    :mod:`rovermarl.record.safe_read`, the dir's name never; one-line ConfigError or ``OSError`` for anything else."""
     from rovermarl.record.safe_read import check_tree, read_json, read_yaml, safe_label
 
     job_dir = Path(job_dir)
     if safe_label(job_dir.name, "job dir") != job_dir.name or not job_dir.is_dir():
         raise errors.ConfigError("job dir", job_dir.name, "must be a directory whose name is letters, digits, _.,=+-")
     check_tree(job_dir, "job dir")
-    if (job_dir / ".hydra" / "overrides.yaml").is_file():
-        source = str(job_dir / ".hydra" / "overrides.yaml")
-        given = [str(o) for o in read_yaml(job_dir / ".hydra" / "overrides.yaml", kind="overrides")]
-        picked = [o for o in given if o.partition("=")[0] in group_names() and allowed(o, {}, source)]
-        base = _base(picked)
-        return [o for o in given if allowed(o, base, source)]
+    overrides_file = job_dir / ".hydra" / "overrides.yaml"
+    if overrides_file.is_file():
+        given = [str(o) for o in read_yaml(overrides_file, kind="overrides")]
+        base = _base([o for o in given if o.partition("=")[0] in group_names() and allowed(o, {}, str(overrides_file))])
+        return [o for o in given if allowed(o, base, str(overrides_file))]
     source = str(job_dir / "config.yaml")
     config = read_yaml(job_dir / "config.yaml", kind="config")      # its interpolations plain references (schemas)
     config = _plain(OmegaConf.create(config)) if isinstance(config, dict) else {}
@@ -215,11 +201,10 @@ def overrides_of(job_dir: Path) -> list[str]:
 
 
 def allowed(override: str, base: dict, source: str) -> bool:
-    """Whether ``override`` recomputes the job: True for ``key=value`` with a plain value (a word, a number or a
-    list of them: no ``+``, ``~``, quotes inside or interpolation) whose key is a config group (the value one of its
-    options) or a key of ``base`` (the packaged config of the job's options); False for a plain runtime setting or
-    ``seeds`` (``ray.address=...``: the launcher chooses those); else :class:`~rovermarl.errors.ConfigError`
-    naming it and ``source``."""
+    """Whether ``override`` recomputes the job: True for ``key=value`` with a plain value (a word, a number or a list
+    of them: no ``+``, ``~``, quotes inside or interpolation) whose key is a config group (the value one of its
+    options) or a key of ``base`` (the packaged config of the job's options); False for a runtime setting or ``seeds``
+    (the launcher chooses those); else ConfigError naming it and ``source``."""
     key = override.partition("=")[0]
     if _KEY.fullmatch(key) and key.split(".")[0] in NOT_IN_DIR_NAMES:
         return False

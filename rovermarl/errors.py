@@ -98,9 +98,8 @@ def _show(value) -> str:
 
 def integer(key: str, value, lo: int | None = None, hi: int | None = None) -> int:
     """``value`` as an int in [lo, hi], else :class:`ConfigError`."""
-    if isinstance(value, bool) or not isinstance(value, int):
-        raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}")
-    if (lo is not None and value < lo) or (hi is not None and value > hi):
+    bad = isinstance(value, bool) or not isinstance(value, int)
+    if bad or (lo is not None and value < lo) or (hi is not None and value > hi):
         raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}")
     return int(value)
 
@@ -110,20 +109,11 @@ def number(key: str, value, lo: float | None = None, hi: float | None = None, *,
     """``value`` as a finite float in the given (optionally open) interval, else :class:`ConfigError`."""
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and value == value
     ok = ok and abs(value) != float("inf")
-    if ok and lo is not None:
-        ok = value > lo if lo_open else value >= lo
-    if ok and hi is not None:
-        ok = value < hi if hi_open else value <= hi
+    ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
+    ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
     if not ok:
-        if lo is not None and hi is not None:
-            where = f" in {'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
-        elif lo is not None:
-            where = f" {'>' if lo_open else '>='} {lo}"
-        elif hi is not None:
-            where = f" {'<' if hi_open else '<='} {hi}"
-        else:
-            where = ""
-        raise ConfigError(key, value, f"must be a finite number{where}")
+        both = f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+        raise ConfigError(key, value, f"must be a finite number{_range(lo, hi, lo_open, hi_open, both)}")
     return float(value)
 
 
@@ -134,13 +124,14 @@ def choice(key: str, value, options) -> str:
     return value
 
 
-def _range(lo, hi) -> str:
+def _range(lo, hi, lo_open: bool = False, hi_open: bool = False, both: str | None = None) -> str:
+    """The bounds of an error message: `` in lo..hi`` (or `` in <both>``), `` >= lo`` (``>``), `` <= hi`` (``<``)."""
     if lo is not None and hi is not None:
-        return f" in {lo}..{hi}"
+        return f" in {both or f'{lo}..{hi}'}"
     if lo is not None:
-        return f" >= {lo}"
+        return f" {'>' if lo_open else '>='} {lo}"
     if hi is not None:
-        return f" <= {hi}"
+        return f" {'<' if hi_open else '<='} {hi}"
     return ""
 
 

@@ -1,12 +1,10 @@
 """The one home of Hydra's private API in rovermarl (checked against hydra-core 1.3.8).
 
-rovermarl composes and validates every job of an invocation before any runs, then hands Hydra the parsed command
-line with the output dir made explicit. Hydra offers no public way to do four of those steps: parse its command
-line (``get_args_parser``), expand a sweep into jobs as its basic sweeper does (``BasicSweeper.split_arguments``),
-run its main with arguments given rather than read from ``sys.argv`` (``_run_hydra``), and skip the basic
-sweeper's own composition of every job before launching (``BasicSweeper.validate_batch_is_legal``), which
-``config.compose_jobs`` has already done: it cost about 0.5 s per job, a third of a sweep's start-up.
-``tests/test_hydra_compat.py`` fails plainly if a Hydra release moves or changes them.
+Hydra has no public way to parse its command line (``get_args_parser``), expand a sweep into jobs as its basic
+sweeper does (``BasicSweeper.split_arguments``), run its main with arguments given rather than read from
+``sys.argv`` (``_run_hydra``), or skip the basic sweeper's composition of every job before launching
+(``BasicSweeper.validate_batch_is_legal``), which ``config.compose_jobs`` has already done: it cost about 0.5 s per
+job, a third of a sweep's start-up. ``tests/test_hydra_compat.py`` fails plainly if a Hydra release changes them.
 """
 
 from __future__ import annotations

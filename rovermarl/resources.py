@@ -1,19 +1,12 @@
-"""Where rovermarl's packaged files are: the Hydra config groups, ``CONF_DIR``.
+"""Where rovermarl's packaged files are: the Hydra config groups, ``CONF_DIR``, and :func:`composer`, Hydra's compose
+on it (the one way code composes the packaged config: the CLI's jobs, ``compose_config``, ``make_world``).
 
-The config groups live in the repository's top-level ``conf/``. The build backend ships that directory as the
-package ``rovermarl.conf`` (``pyproject.toml``: ``package-dir`` and ``package-data``), so a wheel,
-``pip install .``, ``pip install git+...`` and a container image hold them as ``rovermarl/conf/**.yaml`` next to
-the code, and the import system finds them there: ``rovermarl.conf`` holds YAML only (no ``__init__.py``), so it
-is a namespace package whose directory is its ``submodule_search_locations`` entry (found without importing it).
-
-Where there is no ``rovermarl.conf`` the code runs from a checkout, and the checkout's ``conf/`` next to the
-package is the one: an editable install (``pip install -e .``: setuptools' editable finder does not map a nested
-namespace package, so it resolves to the same ``conf/`` this way), ``PYTHONPATH=.``, or a run from the repository
-root. In a wheel that path would be ``site-packages/conf``, which is never used: the packaged copy is found first.
-
-``CONF_DIR`` is an absolute :class:`~pathlib.Path` to a real directory in every case, usable as Hydra's
-``config_path`` and with ``initialize_config_dir``; :func:`composer` is Hydra's compose on it, the one way code
-composes the packaged config (the CLI's jobs, ``compose_config``, ``make_world``).
+A wheel or ``pip install .`` ships the top-level ``conf/`` as ``rovermarl/conf/**.yaml`` (``pyproject.toml``). It
+holds YAML only, so ``rovermarl.conf`` is a namespace package, found without importing it. Where there is none, the
+code runs from a checkout (``pip install -e .``, whose editable finder does not map a nested namespace package;
+``PYTHONPATH=.``; the repository root) and the ``conf/`` next to the package is the one (in a wheel, that path,
+``site-packages/conf``, is never used). ``CONF_DIR`` is always an absolute path to a real directory, usable as Hydra's
+``config_path`` and with ``initialize_config_dir``.
 """
 
 from __future__ import annotations

@@ -2,9 +2,8 @@
 
 Every job is composed and validated (its world built) before anything runs and before Ray starts: a bad config or
 plug-in exits 2 with one line on stderr (a plug-in's error later: 1, one line naming its file). Output dirs are named
-after the command's overrides (``outputs/multirun/<overrides>/<job overrides>``): relaunching it resumes it. Ctrl-C
-and SIGTERM stop it with one line and exit 130 / 143 at any moment, from the imports on (``HYDRA_FULL_ERROR=1``: the
-traceback too); Ray is shut down and no process it started outlives the launch."""
+after the command's overrides (``outputs/multirun/<overrides>/<job overrides>``): relaunching it resumes it. Signals
+(exit 130 / 143 from the imports on) and Ray's processes: docs/GUIDE.md, "What rovermarl promises"."""
 
 from __future__ import annotations
 
@@ -37,7 +36,7 @@ from omegaconf import DictConfig, OmegaConf  # noqa: E402
 from rovermarl import hydra_compat  # noqa: E402
 from rovermarl.algorithms.base import AlgorithmError  # noqa: E402
 from rovermarl.config import compose_jobs, dirname, job_dirs, quote_numeric_options, sweepname  # noqa: E402
-from rovermarl.errors import ConfigError, config_plugin_line  # noqa: E402
+from rovermarl.errors import ConfigError, config_plugin_line, verbose  # noqa: E402
 from rovermarl.parallel import BackendError, backend  # noqa: E402
 from rovermarl.record import lock  # noqa: E402
 from rovermarl.record.atomic import check_output_dir  # noqa: E402
@@ -67,7 +66,7 @@ def task(cfg: DictConfig) -> float:
     except Unsafe as e:
         raise Stop(f"{PROG}: error: {name}: {e}", 2) from None
     except OSError as e:
-        if e.errno not in STORAGE_ERRORS or os.environ.get("HYDRA_FULL_ERROR") == "1":
+        if e.errno not in STORAGE_ERRORS or verbose():
             raise
         raise Stop(f"{PROG}: error: {name}: cannot write {e.filename or 'a result file'}: {e.strerror}; fix it and "
                    "relaunch the same command to resume") from None
@@ -90,11 +89,9 @@ class Stop(SystemExit):
 
 
 def check(argv: list[str]) -> tuple[argparse.Namespace, argparse.ArgumentParser, list[DictConfig]]:
-    """Parse, compose and validate every job of ``argv`` (already quoted); raises ConfigError.
-
-    Returns Hydra's parsed arguments with the output dir made explicit (``outputs/multirun/<overrides>``, or
-    ``outputs/run/<overrides>`` without -m), the parser, and the job configs.
-    """
+    """Parse, compose and validate every job of ``argv`` (already quoted); raises ConfigError. Returns Hydra's parsed
+    arguments with the output dir made explicit (``outputs/multirun/<overrides>``, or ``outputs/run/<overrides>``
+    without -m), the parser, and the job configs."""
     parser = hydra_compat.args_parser()
     parser.exit_on_error = False
     try:
@@ -202,8 +199,7 @@ def main(argv: list[str] | None = None) -> None:
     """Compose and validate every job, hold the output dir, start Ray, run the jobs; SIGINT and SIGTERM at any
     point end it with one line and exit 130 / 143, Ray and its processes gone."""
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
-    ray = sys.modules.get("ray")
-    ours = ray is None or not ray.is_initialized()                  # a Ray this call starts is this call's to stop
+    ours = "ray" not in sys.modules or not sys.modules["ray"].is_initialized()   # a Ray this call starts, it stops
     previous = _handle_signals()
     hook, sys.unraisablehook = sys.unraisablehook, _unraisable
     _SIGNALS.clear()
@@ -213,18 +209,17 @@ def main(argv: list[str] | None = None) -> None:
     stop, cfgs = None, []
     try:
         args, parser, cfgs = check(argv)
-        with _sweep_lock(args):                                    # before Ray starts: a busy dir stops at once
+        # the output dir's lock (each job then its own, in run_job), before Ray starts: a busy dir stops at once
+        with lock.hold(args.out_dir, clean=True) if getattr(args, "out_dir", None) else contextlib.nullcontext():
             if not _all_finished(args, cfgs):                      # a relaunch with nothing to compute: no Ray
                 _compile_while_ray_starts(cfgs)
             hydra_compat.run(args, parser, task, str(CONF_DIR))
-    except ConfigError as e:
+    except (ConfigError, Unsafe) as e:
         stop = Stop(f"{PROG}: error: {e}", 2)
     except lock.Locked as e:
         stop = Stop(f"{PROG}: error: {e}", BUSY)
-    except Unsafe as e:
-        stop = Stop(f"{PROG}: error: {e}", 2)
     except KeyboardInterrupt:
-        if os.environ.get("HYDRA_FULL_ERROR") == "1":
+        if verbose():
             raise
         if not _SIGNALS:                                             # a KeyboardInterrupt of the user's code
             _SIGNALS.append(signal.SIGINT)
@@ -256,11 +251,8 @@ def main(argv: list[str] | None = None) -> None:
 def _handle_signals() -> dict:
     """Unwind on SIGINT and SIGTERM (:func:`_signalled`); returns the handlers to restore afterwards (Python's
     defaults in place of this module's own)."""
-    previous = {}
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        previous[sig] = signal.getsignal(sig)
-        signal.signal(sig, _signalled)
     default = {signal.SIGINT: signal.default_int_handler, signal.SIGTERM: signal.SIG_DFL}
+    previous = {sig: signal.signal(sig, _signalled) for sig in default}
     return {sig: default[sig] if h in (_before_work, _signalled) else h for sig, h in previous.items()}
 
 
@@ -270,12 +262,6 @@ def _adopt_orphans() -> None:
     with contextlib.suppress(Exception):
         import ctypes
         ctypes.CDLL(None, use_errno=True).prctl(36, 1, 0, 0, 0)      # PR_SET_CHILD_SUBREAPER
-
-
-def _sweep_lock(args):
-    """The launch holds its output dir's lock and writes only beneath it (the sweep dir of a multirun, each job then
-    its own job dir's too, in :func:`run_job`; the run dir of a single run)."""
-    return lock.hold(args.out_dir, clean=True) if getattr(args, "out_dir", None) else contextlib.nullcontext()
 
 
 class Terminated(KeyboardInterrupt):
@@ -289,23 +275,22 @@ _REARM: list[bool] = []                                              # the last 
 def _signalled(signum, frame):
     """Unwind on SIGINT or SIGTERM, once (the unwinding is not interrupted again); the launch then ends with exit
     130 / 143, whatever caught the exception."""
-    if not _SIGNALS or _REARM:
-        _REARM.clear()
-        _SIGNALS.append(signum)
-        raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+    first = not _SIGNALS or bool(_REARM)
     _SIGNALS.append(signum)
+    if first:
+        _REARM.clear()
+        raise Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _unraisable(unraisable) -> None:
     """Python drops an exception raised in a finalizer (``__del__``, a weakref callback): when that was our
-    interrupt, deliver it again to the main thread, from another thread once this hook has returned."""
-    if _SIGNALS and unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
+    interrupt, deliver it again to the main thread, from another thread once this hook has returned. After an
+    interrupt, nothing else is shown (a finalizer of what it cut short, a half-written zip: no noise)."""
+    if not _SIGNALS:
+        sys.__unraisablehook__(unraisable)
+    elif unraisable.exc_type is not None and issubclass(unraisable.exc_type, KeyboardInterrupt):
         _REARM.append(True)
         threading.Timer(0.01, _redeliver, (_SIGNALS[0],)).start()
-        return
-    if _SIGNALS:                       # a finalizer of what the interrupt cut short (a half-written zip): no noise
-        return
-    sys.__unraisablehook__(unraisable)
 
 
 def _redeliver(signum: int) -> None:

@@ -1,12 +1,10 @@
 """Compile ahead: ``python -m rovermarl.warmup [OVERRIDE ...]`` compiles (numba) what a job of these overrides runs.
 
-numba compiles the kernel on first use and caches it (``__pycache__``, or ``NUMBA_CACHE_DIR``); a later run of the
-same code loads it. A first run on a fresh install or image therefore starts with a compile (the default job: 27 s more
-than a warm run on 2 idle cores); ``rovermarl.train`` says so before it starts, does it once in the driver while Ray
-starts (so that Ray's workers load it), and leaves it out of the rates it reports. Run this module in an image build
-or before a cluster job to pay it ahead:
+numba compiles the kernel on first use and caches it (``__pycache__``, or ``NUMBA_CACHE_DIR``), so a first run on a
+fresh install or image starts with a compile (the default job: 27 s more than a warm run on 2 idle cores), which
+``rovermarl.train`` announces, does once while Ray starts and leaves out of its rates. This pays it ahead, in an image
+build or before a cluster job (no overrides: the default job):
 
-    python -m rovermarl.warmup                        # the default job
     python -m rovermarl.warmup setup=duo env.dtype=float32 env=obstacles hydra.searchpath=[file://examples/obstacles]
 
 It runs the job itself for 2 generations with 1 seed, serially, into a temporary dir (every compiled function the
