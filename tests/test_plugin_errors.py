@@ -58,3 +58,19 @@ def test_a_plugin_error_in_a_worker_reaches_the_user_in_one_line(picky, parallel
     assert "a plug-in failed: ValueError: picky: at most 16 layouts at once, not 256 (in " in last, proc.stderr[-3000:]
     assert "picky.py:" in last and "Traceback" not in proc.stderr, proc.stderr[-3000:]
     assert os.path.isdir(picky)
+
+
+@pytest.mark.parametrize("body, said", [
+    ("    radius: float = 1.0\n", "Old declares parameters on the World (radius): declare them as fields of its"),
+    ("    class Params(World.Params):\n        radius: float = 1.0\n",
+     "Old.Params must be a subclass of World.Params decorated with @dataclass(frozen=True)"),
+])
+def test_a_world_refused_when_made_is_one_line_on_the_command_line(tmp_path, body, said):
+    """Issue 52 item 3: a parameter off its Params stops the plug-in's import; the CLI says so in one line."""
+    (tmp_path / "old.py").write_text(f"from rovermarl.worlds import World\n\n\nclass Old(World):\n{body}")
+    (tmp_path / "env").mkdir()
+    (tmp_path / "env" / "old.yaml").write_text("defaults:\n  - rovers\n  - _self_\n_target_: old.Old\n")
+    proc = run_cli("env=old", f"hydra.searchpath=[file://{tmp_path}]", "generations=2", "seeds=1", cwd=tmp_path,
+                   env={"PYTHONPATH": str(ROOT), "HYDRA_FULL_ERROR": "0"})
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert said in proc.stderr and "env._target_=old.Old: cannot be imported (TypeError: " in proc.stderr

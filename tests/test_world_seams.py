@@ -94,7 +94,7 @@ def test_the_world_holds_its_configuration_as_one_object():
     ("    radius: float = 1.0\n", r"^Bad declares parameters on the World \(radius\): declare them as fields of "
                                  r"its Params, a @dataclass\(frozen=True\) subclass of World.Params"),
     ("    class Params(World.Params):\n        radius: float = 1.0\n",
-     r"^Bad.Params is not a dataclass subclass of World.Params"),
+     r"^Bad.Params must be a subclass of World.Params decorated with @dataclass\(frozen=True\)"),
 ])
 def test_a_parameter_declared_off_its_params_is_refused_in_one_line(body, said):
     with pytest.raises(TypeError, match=said) as err:

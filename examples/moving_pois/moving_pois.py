@@ -78,7 +78,7 @@ class MovingPois(World):
     ((16, 10, 2), True)
     """
 
-    @dataclass(frozen=True, eq=False)
+    @dataclass(frozen=True)
     class Params(World.Params):
         drift_radius: float = 2.5
         speed_low: float = 0.1

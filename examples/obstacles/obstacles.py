@@ -73,7 +73,7 @@ class Obstacles(World):
     (40, ['poi', 'rover', 'obstacle'])
     """
 
-    @dataclass(frozen=True, eq=False)
+    @dataclass(frozen=True)
     class Params(World.Params):
         obstacles: tuple = ((6.5, 0.0, 1.5), (0.0, 6.5, 1.5), (-6.5, 0.0, 1.5), (0.0, -6.5, 1.5))
 

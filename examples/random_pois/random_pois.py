@@ -49,7 +49,7 @@ class RandomPois(World):
     ((3, 20), True)
     """
 
-    @dataclass(frozen=True, eq=False)
+    @dataclass(frozen=True)
     class Params(World.Params):
         ring_inner: float = 8.0
         ring_outer: float = 14.0

@@ -41,7 +41,8 @@ def check_params(cls: type) -> None:
     ps = cls.Params
     if not (isinstance(ps, type) and issubclass(ps, Params)) or (
             "__dataclass_fields__" not in vars(ps) and vars(ps).get("__annotations__")):
-        raise TypeError(f"{cls.__name__}.Params is not a dataclass subclass of World.Params: {_HOW}")
+        raise TypeError(f"{cls.__name__}.Params must be a subclass of World.Params decorated with "
+                        f"@dataclass(frozen=True) (docs/WORLDS.md)")
 
 
 def no_dataclass(cls: type) -> type:

@@ -11,6 +11,7 @@ a plug-in's trial (:mod:`rovermarl.env.trial`): a bad plug-in fails there, in on
 
 from __future__ import annotations
 
+import importlib
 import math
 from collections.abc import Collection
 from dataclasses import fields
@@ -383,11 +384,12 @@ def world_class(target: str | None, trust: bool | Collection[str] = False) -> ty
     if not (trust is True or (trust and not isinstance(trust, (bool, str)) and target in trust)):
         raise errors.ConfigError("env._target_", target, "a world plug-in; a results directory may not run code: "
                                  "pass --trust-config if you trust it")
-    from hydra.utils import get_class
+    module, _, name = target.rpartition(".")
     try:
-        cls = get_class(target)
-    except Exception as e:
-        raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: {e})") from None
+        cls = getattr(importlib.import_module(module), name)
+    except Exception as e:                              # its own error, in one line (a plug-in refused when made)
+        raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: "
+                                 f"{' '.join(str(e).split())})") from None
     if not (isinstance(cls, type) and issubclass(cls, World)):
         raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.worlds.World")
     return no_dataclass(cls)

@@ -36,7 +36,7 @@ def move(x, y, heading, sin_h, cos_h, a0, a1, w, s):
 
 
 class Battery(World):
-    @dataclass(frozen=True, eq=False)
+    @dataclass(frozen=True)
     class Params(World.Params):
         charge_low: float = 3.0
         charge_high: float = 10.0
