@@ -36,7 +36,7 @@ def poi_hex(coupling: int) -> str:
 
 def rgb(hex_colour: str) -> tuple[int, int, int]:
     """``'#ff7f0e'`` -> ``(255, 127, 14)``."""
-    return tuple(bytes.fromhex(hex_colour.lstrip("#")))
+    return tuple(bytes.fromhex(hex_colour.lstrip("#")[:6]))
 
 
 def rover_rgb(n: int) -> np.ndarray:

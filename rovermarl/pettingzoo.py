@@ -5,7 +5,8 @@ Import               ``from rovermarl.pettingzoo import parallel_env, env`` (the
 Agents               ``rover_0`` ... ``rover_{N-1}`` (N = ``env.n_rovers``, 4 by default)
 Actions              ``Box(-1, 1, (2,))`` in ``env.dtype``: ``(a0, a1)`` (speed, turn; SPEC section 3), clipped to it
 Observations         ``Box`` (3P + 2N,) in ``env.dtype``: 38 in every paper setup (SPEC section 2); with
-                     ``time_feature=True`` the step t / T as a last number (39)
+                     ``time_feature=True`` the step t / T as a last number (39); distances / sensor range in
+                     [0, 1], bearings / pi in [-1, 1], POI types
 State                ``state()`` (``state_space``): every rover's x, y, cos and sin of its heading, t / T, and the
                      episode's layout (a world plug-in's); float64
 Episode              ``env.steps`` (15) steps (``max_cycles`` sets it), then every agent is terminated

@@ -235,6 +235,7 @@ class PPO(SharedActor):
 
     def _save(self, model, rng, env_rng, cursor: int) -> PPOState:
         adam = adam_arrays(dict(model.policy.named_parameters()), model.policy.optimizer.state)
+        assert list(adam) == [name for name, _ in model.policy.named_parameters()]     # Adam's order is the policy's
         params = {k: v.detach().numpy().copy() for k, v in model.policy.state_dict().items()}
         numpy = np.random.get_state(legacy=False)  # noqa: NPY002 - SB3 shuffles with it
         return PPOState(params=params, adam=adam, torch=rng.state(), numpy=numpy, env_rng=env_rng, cursor=int(cursor),

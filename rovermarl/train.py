@@ -199,7 +199,8 @@ def main(argv: list[str] | None = None) -> None:
     """Compose and validate every job, hold the output dir, start Ray, run the jobs; SIGINT and SIGTERM at any
     point end it with one line and exit 130 / 143, Ray and its processes gone."""
     argv = quote_numeric_options(list(sys.argv[1:] if argv is None else argv))
-    ours = "ray" not in sys.modules or not sys.modules["ray"].is_initialized()   # a Ray this call starts, it stops
+    ray = sys.modules.get("ray")
+    ours = ray is None or not ray.is_initialized()                  # a Ray this call starts is this call's to stop
     previous = _handle_signals()
     hook, sys.unraisablehook = sys.unraisablehook, _unraisable
     _SIGNALS.clear()

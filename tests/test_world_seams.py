@@ -111,3 +111,13 @@ def test_a_world_made_a_dataclass_is_refused_in_one_line():
 
     with pytest.raises(errors.ConfigError, match=r"^Old=@dataclass: a World is no dataclass: declare them as fields"):
         make_world("solo", world=Old)
+
+
+def test_an_attribute_error_inside_a_world_member_is_its_own():
+    """A plug-in member that reads a name it lacks fails with that name, not with the World's property's."""
+    class Typo(World):
+        def kernel_extra(self):
+            return (self.params.wind,)
+
+    with pytest.raises(AttributeError, match="'Params' object has no attribute 'wind'"):
+        Typo(coupling=(1,), value=(1.0,))

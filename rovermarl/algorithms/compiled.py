@@ -2,12 +2,13 @@
 over the numba functions of its common operators (:data:`COMPILED`), bit-identical to the same loop run as Python
 over any operators (:data:`~rovermarl.algorithms.cc11es.PYTHON`); docs/ARCHITECTURE.md, "One generation".
 
-It runs exactly the classes of :data:`OPERATORS` (k fixed or EXP3, the mixed mutation, soft or strict selection,
-either team), in any world (a plug-in's: a copy of this module around its own rollout, :func:`loop_of`), with teams
-scored in this process on the run's fixed initial conditions; :func:`refusal` says why a run is not in it. numba
-draws the same numbers from a numpy ``Generator`` as numpy does. Accepted generations are rare (1 in 196 with k=1
-and 1 in 147 with EXP3 in 20,000-generation runs on solo), so a compiled call stops after each one and Python tells
-the observer (trajectories, occupancy), then calls again.
+It runs exactly the classes of :data:`OPERATORS` (k fixed or EXP3, the mixed mutation, soft or strict selection, either
+team), in any world (a plug-in's: a copy of this module around its own rollout, :func:`loop_of`), with teams scored in
+this process on the run's fixed initial conditions; :func:`refusal` says why a run is not in it. It calls the operators'
+own numba functions (``draw_arm``, ``exp3_update``, ``bandit_reward``, ``pick_distinct``, ``mixed``, ``keeps``), which
+their Python classes call too: hence bit-identical. numba draws the same numbers from a numpy ``Generator`` as numpy
+does. Accepted generations are rare (1 in 196 with k=1 and 1 in 147 with EXP3 in 20,000-generation runs on solo), so a
+compiled call stops after each one and Python tells the observer (trajectories, occupancy), then calls again.
 
 Why compile it: a generation's team evaluation is about 45 us of compiled work, and the Python operations add their
 calls to each. ``python benchmarks/loop.py`` (500-generation chunks, alternated, medians of 7) gave the compiled

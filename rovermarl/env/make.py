@@ -15,13 +15,14 @@ from rovermarl.resources import composer
 
 def make_world(setup: str = "solo", world: type[World] | str | None = None, **overrides) -> World:
     """A :class:`World` with the defaults of ``conf/``, composed by Hydra as the CLI composes ``setup=<setup>`` (its
-    ``setup``, ``env`` and ``policy`` sections). Keyword overrides name World fields, e.g. ``make_world("duo",
-    steps=20)`` or the world options of SPEC section 8, ``make_world("duo", reward="any_step", speed="clip",
-    poi_type="sign")``; the policy's size is ``hidden=8`` (the key of the policy group) or ``policy=MLP(hidden=8)``.
+    ``setup``, ``env`` and ``policy`` sections). Keyword overrides name the world's parameters (fields of its
+    ``Params``), e.g. ``make_world("duo", steps=20)`` or the world options of SPEC section 8, ``make_world("duo",
+    reward="any_step", speed="clip", poi_type="sign")``; the policy's size is ``hidden=8`` (the key of the policy
+    group) or ``policy=MLP(hidden=8)``.
 
     ``world``: a world plug-in, its class (a subclass of World) or dotted name, built on the setup's POIs with its
-    own fields among the overrides: ``make_world("duo", world=Obstacles, obstacles=[[0, 6, 1]])``
-    (``docs/WORLDS.md``). A key that is no field of it is refused in one line naming the key."""
+    own parameters among the overrides: ``make_world("duo", world=Obstacles, obstacles=[[0, 6, 1]])``
+    (``docs/WORLDS.md``). A key that is no field of its ``Params`` is refused in one line naming the key."""
     if world is not None and not isinstance(world, str) and not (isinstance(world, type) and issubclass(world, World)):
         raise errors.ConfigError("world", world, "must be a subclass of rovermarl.env.World or its dotted name")
     cls = world_class(world, trust=True) if isinstance(world, str) else no_dataclass(world)

@@ -3,9 +3,9 @@ means is in docs/GUIDE.md (``behaviour.npz``, ``occupancy.npz``, ``switched`` of
 
 - occupancy ``count`` (E, P) int8: rovers observing each POI at the end of each episode, at generation 0 and
   whenever an accepted team changes it (each entry holds until the next);
-- switched: per generation, the episodes in which a rover this generation did not mutate ends observing another POI
-  (or none instead of one, or the reverse) than in the parent team (the paper's Section 5.3); -1 when every rover was
-  mutated (k = N, homogeneous team) or occupancy is off;
+- switched: per generation, the number of episodes (int16) in which a rover this generation did not mutate ends
+  observing another POI (or none instead of one, or the reverse) than in the parent team (the paper's Section 5.3); -1
+  when every rover was mutated (k = N, homogeneous team) or occupancy is off;
 - behaviour ``xy`` (E, T+1, N, 2) float32: the parent team's trajectories at generation 0, at each accepted score
   change (and the generation before it if the team changed since the last entry: each change has its exact before
   and after) and at the last generation. Under ``evaluation.fresh_ic`` each score comes from new initial

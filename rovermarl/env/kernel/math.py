@@ -1,12 +1,12 @@
 """Elementary functions of the kernel (numba): branchless ``atan2``, ``tanh``, ``sincos``, and ``wrap``.
 
-Branchless (selects only) so that LLVM vectorises the loops that inline them: numba 0.68 without SVML leaves calls
-to libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py) and works
-in its argument's precision: numba types a float literal as float64, so constants go through :func:`like` (or
-:func:`pick`, for a float32 value of its own), the literal itself for float64 and a float32 constant for float32.
-:func:`tanh` and :func:`atan2`'s core are overloads with a float32 formula of their own (:func:`_tanh32`,
-:func:`_atan32`), compiled as functions that LLVM inlines (inlining them in numba's IR trips its SSA check).
-``FAST``, the options of every vectorised kernel function, allows FMA contraction only (no reassociation, no
+Branchless (selects only) so that LLVM vectorises the loops that inline them: numba 0.68 without SVML leaves calls to
+libm ``atan2``/``tanh``/``sin``/``cos`` scalar. Each is within 2 ulp of libm (tests/test_kernel_math.py) and works in
+its argument's precision: numba types a float literal as float64, so constants go through :func:`like` (or :func:`pick`,
+for a float32 value of its own), the literal itself for float64 and a float32 constant for float32. :func:`tanh` and
+:func:`atan2`'s core are overloads with a float32 formula of their own (:func:`_tanh32`, :func:`_atan32`: fewer
+operations, float32 accuracy), compiled as functions that LLVM inlines (inlining them in numba's IR trips its SSA
+check). ``FAST``, the options of every vectorised kernel function, allows FMA contraction only (no reassociation, no
 finite-math assumptions), so results differ from plain IEEE arithmetic by rounding only.
 
 The one LLVM intrinsic, :func:`_pow2` (2^n from its bits), is worth 3.9x a call: ``python benchmarks/intrinsics.py

@@ -170,7 +170,13 @@ def _block_sum(a, lo, n):
 def pairwise_sum(a):
     """``a.sum()`` of a (E,) with numpy's summation order, so it is the same float: blocks of up to 128 terms
     (:func:`_block_sum`), larger ranges split in halves (multiples of 8) and their sums added (numpy recurses; an
-    explicit stack here, as numba's cache cannot hold a recursive function)."""
+    explicit stack here, as numba's cache cannot hold a recursive function).
+
+    >>> import numpy as np
+    >>> a = np.random.default_rng(0).standard_normal(300)
+    >>> pairwise_sum(a) == a.sum()
+    True
+    """
     lo, size, stage = np.zeros(64, np.int64), np.zeros(64, np.int64), np.zeros(64, np.int64)
     values = np.empty(64)
     top, nv = 0, 0

@@ -301,11 +301,11 @@ def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
 
 @njit(**FAST)
 def _mlp(genomes, i, obs, cand, ep, hidden, hid, rows, finite):
-    """MLP of genome row i (team ``i // N``'s rover ``i % N``) over its ``ep`` episodes from lane ``_lane0``, inputs
-    summed in index order: genomes, cand and ``finite`` as in :func:`act_flat`, obs (D*N*E,) feature-major; hid
-    ((H+2)*ep,): the hidden units, then the two outputs' sums before their tanh in its last 2 ep entries
-    (:func:`act_flat` applies it); rows (D,) int scratch. Every array is read in place, never through a view (a
-    rover's row, a slice), and the call takes few arrays: each view, and each array argument of a call, costs two
+    """MLP of genome row i (team ``i // N``'s rover ``i % N``) over its ``ep`` episodes from the lane :func:`_lane0`
+    gives, inputs summed in index order: genomes, cand and ``finite`` as in :func:`act_flat`, obs (D*N*E,)
+    feature-major; hid ((H+2)*ep,): the hidden units, then the two outputs' sums before their tanh in its last 2 ep
+    entries (:func:`act_flat` applies it); rows (D,) int scratch. Every array is read in place, never through a view
+    (a rover's row, a slice), and the call takes few arrays: each view, and each array argument of a call, costs two
     atomic reference counts (without the views the rollout ran 1.02x, without a0 and a1 here 1.01-1.04x)."""
     g = genomes.shape[1]
     ne = ep * genomes.shape[0]
