@@ -35,7 +35,7 @@ except ModuleNotFoundError as _e:
 
 from rovermarl import errors, policy
 from rovermarl.algorithms.base import RunState, generator
-from rovermarl.algorithms.final_team import FINAL_TEAMS, SharedActor, train_starts
+from rovermarl.algorithms.final_team import SharedActor, train_starts
 from rovermarl.torch_state import RunRng, adam_arrays, load_adam, seeded
 from rovermarl.vector import VectorEnv
 
@@ -85,13 +85,7 @@ class MAPPO(SharedActor):
                  log_std_init: float = -0.5, value_hidden: tuple = (64, 64), final_team: str = "last",
                  loop: str = "auto"):
         super().__init__(world)
-        errors.choice("loop", loop, ("auto", "python"))
-        self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
-        self.num_envs = errors.integer("num_envs", num_envs, 1, 1_000_000)
-        self.n_steps = errors.integer("n_steps", n_steps, world.steps, 1_000_000)
-        if self.n_steps % world.steps:
-            raise errors.ConfigError("n_steps", n_steps, f"must be a multiple of env.steps={world.steps} (each "
-                                     "iteration starts on fresh episodes)")
+        self._common_keys(loop, final_team, num_envs, n_steps)
         self.minibatches = errors.integer("minibatches", minibatches, 1, self.num_envs * self.n_steps)
         self.n_epochs = errors.integer("n_epochs", n_epochs, 1)
         self.lr = errors.number("learning_rate", learning_rate, 0, lo_open=True)

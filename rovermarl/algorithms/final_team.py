@@ -26,6 +26,17 @@ class SharedActor(Algorithm):
     def _genomes(self, params) -> np.ndarray:
         raise NotImplementedError
 
+    def _common_keys(self, loop: str, final_team: str, num_envs: int, n_steps: int, what: str = "") -> None:
+        """Check the keys every such learner takes; ``n_steps`` a multiple of ``env.steps`` (each ``what`` iteration
+        starts on fresh episodes)."""
+        errors.choice("loop", loop, ("auto", "python"))
+        self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
+        self.num_envs = errors.integer("num_envs", num_envs, 1, 1_000_000)
+        self.n_steps = errors.integer("n_steps", n_steps, self.world.steps, 1_000_000)
+        if self.n_steps % self.world.steps:
+            raise errors.ConfigError("n_steps", n_steps, f"must be a multiple of env.steps={self.world.steps} (each "
+                                     f"{what}iteration starts on fresh episodes)")
+
     def _first(self, state: RunState, evaluate: Evaluator) -> Measured:
         """Score the first iterate; ``state`` gets its ``score`` (and ``best``)."""
         team = self._genomes(state.params)
