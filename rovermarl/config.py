@@ -151,7 +151,11 @@ def _composition_error(e: Exception, job: list[str], config_name: str = "config"
 
 
 def _value_of(key: str, job: list[str]):
-    return next((v for k, _, v in (arg.partition("=") for arg in job) if k.lstrip("+~") == key), None)
+    for arg in job:
+        k, _, v = arg.partition("=")
+        if k.lstrip("+~") == key:
+            return v
+    return None
 
 
 def _one_line(e: Exception) -> str:

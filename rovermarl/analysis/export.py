@@ -71,8 +71,11 @@ def export_job(job: Job, label: str, out: Path, grid_points: int = GRID_POINTS, 
     if world is None:
         raise ResultsError(f"{job.path}: cannot build the world from its config")
     episodes = world.episodes
-    couplings = {str(r.seed): c for r in runs
-                 if (c := coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)) is not None}
+    couplings = {}
+    for r in runs:
+        c = coupling(read_run_arrays(r.path, RunSize.of(job.config, world)), episodes)
+        if c is not None:
+            couplings[str(r.seed)] = c
     summary = read_json(job.path / "summary.json", kind="summary") if job.finished else {}
     _same_generation(job, summary, runs)
     compute = compute_of(job)      # agent-steps: the team evaluations', plus those a learner took itself (PPO's)

@@ -5,9 +5,8 @@ parameters as frozen dataclass fields, checked when built. Their defaults are re
 ``env`` group's default option, shipped with the package): that file is their one home, so the command line,
 :func:`~rovermarl.env.make_world` and ``World(coupling=..., value=...)`` agree. A world plug-in with parameters of its
 own declares them in a nested ``Params`` dataclass subclassing ``World.Params``, and checks them in its ``check``
-(``docs/WORLDS.md``). The
-policy's configuration is its own object, :class:`~rovermarl.policy.MLP` (``policy.hidden``). :func:`keywords` reads
-a composed config into a world class's keywords (``World.from_config``).
+(``docs/WORLDS.md``). The policy's configuration is its own object, :class:`~rovermarl.policy.MLP`
+(``policy.hidden``). :func:`keywords` reads a composed config into a world class's keywords (``World.from_config``).
 """
 
 from __future__ import annotations
