@@ -112,8 +112,7 @@ def number(key: str, value, lo: float | None = None, hi: float | None = None, *,
     ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
     ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
     if not ok:
-        both = f"{'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
-        raise ConfigError(key, value, f"must be a finite number{_range(lo, hi, lo_open, hi_open, both)}")
+        raise ConfigError(key, value, f"must be a finite number{_range(lo, hi, lo_open, hi_open, interval=True)}")
     return float(value)
 
 
@@ -124,10 +123,13 @@ def choice(key: str, value, options) -> str:
     return value
 
 
-def _range(lo, hi, lo_open: bool = False, hi_open: bool = False, both: str | None = None) -> str:
-    """The bounds of an error message: `` in lo..hi`` (or `` in <both>``), `` >= lo`` (``>``), `` <= hi`` (``<``)."""
+def _range(lo, hi, lo_open: bool = False, hi_open: bool = False, interval: bool = False) -> str:
+    """The bounds of an error message: `` in lo..hi`` (``interval``: `` in [lo, hi)`` and the like), `` >= lo``
+    (``>``), `` <= hi`` (``<``)."""
     if lo is not None and hi is not None:
-        return f" in {both or f'{lo}..{hi}'}"
+        if interval:
+            return f" in {'(' if lo_open else '['}{lo}, {hi}{')' if hi_open else ']'}"
+        return f" in {lo}..{hi}"
     if lo is not None:
         return f" {'>' if lo_open else '>='} {lo}"
     if hi is not None:
