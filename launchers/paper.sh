@@ -14,4 +14,4 @@ for fig in fig4 fig5 fig7 fig8; do
 done
 "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --generations "$GENERATIONS"
 figures "$RESULTS" --format png --xscale log
-"$PYTHON" -m rovermarl.analysis claims "$RESULTS"
+"$PYTHON" "$STUDIES"/paper/report.py "$RESULTS"

@@ -11,13 +11,12 @@ import pytest
 
 from rovermarl.algorithms import Evaluator
 from rovermarl.analysis import stats
-from rovermarl.analysis.claims import claims
 from rovermarl.analysis.curves import Curves, log_grid
 from rovermarl.analysis.export import export_fig6
 from rovermarl.analysis.sweep import find_jobs
 from rovermarl.runner import Run
 from rovermarl.runner.job import run_job
-from tests.conftest import ROOT, make_cfg, run_cli
+from tests.conftest import ROOT, make_cfg, run_cli, run_study, study_module
 
 NO_SWEEP_FIGURES = "~hydra.callbacks.plot"   # a launcher draws its study's figures itself; test_plot tests the callback
 
@@ -181,8 +180,8 @@ def test_relaunch_recomputes_only_the_unfinished_run(study):
 
 
 def test_analysis_cli_bad_input_is_one_line(tmp_path):
-    for args in (["claims", str(tmp_path / "missing")], ["export", str(tmp_path), str(tmp_path / "out")],
-                 ["nonsense"]):
+    for args in (["selectors", str(tmp_path / "missing")], ["export", str(tmp_path), str(tmp_path / "out")],
+                 ["claims", str(tmp_path)], ["nonsense"]):
         proc = run_cli(*args, module="rovermarl.analysis")
         assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
         assert proc.stderr.startswith("rovermarl.analysis")
@@ -208,7 +207,7 @@ RESULTS = ROOT / "results" / "paper"
 
 def test_reproduction_report_quotes_the_committed_results(tmp_path):
     shutil.copytree(RESULTS, tmp_path / "paper", ignore=shutil.ignore_patterns("figures"))
-    text, _ = claims(tmp_path / "paper")                                  # recomputed from the committed results
+    text, _ = study_module("paper").claims(tmp_path / "paper")           # recomputed from the committed results
     assert text == (RESULTS / "claims.md").read_text()
     assert text in (ROOT / "docs" / "REPRODUCTION.md").read_text()
 
@@ -223,11 +222,11 @@ def test_claims_on_a_partial_results_dir_names_what_is_missing_in_one_line(tmp_p
     for job in sorted(RESULTS.glob("*/curves.npz")):
         if keep in job.parent.name:
             shutil.copytree(job.parent, partial / job.parent.name)
-    proc = run_cli("claims", str(partial), module="rovermarl.analysis", timeout=300)
+    proc = run_study("paper", str(partial), timeout=300)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert proc.stderr.endswith("\n") and len(proc.stderr.splitlines()) == 1, proc.stderr
-    assert proc.stderr == (f"rovermarl.analysis: error: {partial}: the claims report needs the 13 jobs of the paper "
-                           f"study (launchers/paper.sh); missing: {missing}\n")
+    assert proc.stderr == (f"studies/paper/report.py: error: {partial}: the claims report needs the 13 jobs of the "
+                           f"paper study (launchers/paper.sh); missing: {missing}\n")
     assert proc.stdout == "" and not (partial / "claims.md").exists() and not (partial / "claims.json").exists()
 
 

@@ -61,7 +61,16 @@ def results(tmp_path_factory):
     return base
 
 
-@pytest.mark.parametrize("command", [("claims",), ("selectors",)])
+def _compare(command, base, *args):
+    """``claims`` (the paper study's report, a script) or ``selectors`` (``python -m rovermarl.analysis``) on ``args``
+    from ``base``, whose planted modules are importable either way."""
+    env = {**ENV, "PYTHONPATH": f"{ROOT}{os.pathsep}{base}"}
+    if command == "claims":
+        return run_study("paper", *args, cwd=base, env=env)
+    return run_cli(command, *args, module="rovermarl.analysis", cwd=base, env=env)
+
+
+@pytest.mark.parametrize("command", ["claims", "selectors"])
 @pytest.mark.parametrize("target", ["results.evil.pwn.World", "this.World"])
 def test_claims_and_selectors_import_nothing_a_results_dir_names(results, tmp_path, command, target):
     base = _copy(results, tmp_path, "base")
@@ -69,13 +78,13 @@ def test_claims_and_selectors_import_nothing_a_results_dir_names(results, tmp_pa
     _plant(base / "results" / "evil", marker)
     for config in (base / "results" / "evil").glob("*/config.yaml"):
         _set_world(config, target)
-    proc = run_cli(*command, "results/evil", module="rovermarl.analysis", cwd=base, env=ENV)
+    proc = _compare(command, base, "results/evil")
     assert not marker.exists()
     assert "Beautiful is better than ugly" not in proc.stdout + proc.stderr      # `import this` prints the Zen
     assert "env._target_" in _one_line(proc)
 
 
-@pytest.mark.parametrize("command", [("claims",), ("selectors",)])
+@pytest.mark.parametrize("command", ["claims", "selectors"])
 def test_trust_config_is_the_one_switch_that_builds_a_named_world(results, tmp_path, command):
     """The flag the user gives on the command line, and only it, lets claims and selectors import a plug-in."""
     base = _copy(results, tmp_path, "base")
@@ -83,7 +92,7 @@ def test_trust_config_is_the_one_switch_that_builds_a_named_world(results, tmp_p
     _plant(base / "results" / "evil", marker)
     for config in (base / "results" / "evil").glob("*/config.yaml"):
         _set_world(config, "results.evil.pwn.World")
-    run_cli(*command, "results/evil", "--trust-config", module="rovermarl.analysis", cwd=base, env=ENV)
+    _compare(command, base, "results/evil", "--trust-config")
     assert marker.exists()
 
 

@@ -19,7 +19,7 @@ from rovermarl.record.checkpoint import MAGIC, RunRecord
 from rovermarl.runner.chunk import advance, parts, to_plain
 from rovermarl.runner.identity import config_hash
 from rovermarl.runner.job import run_job
-from tests.conftest import ROOT, make_cfg, run_cli
+from tests.conftest import ROOT, make_cfg, run_cli, run_study
 
 ARGS = ("setup=duo", "k=1", "generations=300", "seeds=1", "parallel=serial", "parallel.chunk=100",
         "checkpoint.every=100", "record=off")
@@ -305,6 +305,8 @@ def test_a_bomb_in_committed_results_is_one_line(tmp_path, command):
     if command == ("plot",):
         proc = run_cli(str(results), "--out", str(tmp_path / "figures"), "--format", "png", module="rovermarl.plot",
                        timeout=60)
+    elif command == ("claims",):                                        # the paper study's report
+        proc = run_study("paper", str(results), timeout=60)
     else:
         proc = run_cli(*command, str(results), module="rovermarl.analysis", timeout=60)
     line = _named_once(proc, "config.yaml", "holds a YAML alias or anchor: refused")

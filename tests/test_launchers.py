@@ -54,14 +54,14 @@ def clone(tmp_path_factory) -> Path:
 
 
 # Stands in for Python in the fast test: records each command and writes where the real one writes (the train
-# runs into hydra.sweep.dir, export into its second argument, plot into RESULTS/figures, claims into RESULTS).
+# runs into hydra.sweep.dir, export into its second argument, plot into RESULTS/figures, the claims into RESULTS).
 FAKE_PYTHON = r"""#!/usr/bin/env bash
 set -eu
 echo "$*" >> "$LAUNCH_LOG"
+case "$1" in */studies/paper/report.py) echo claims > "$2/claims.md" ;; esac
 case "$2" in
     rovermarl.train) for a in "$@"; do case "$a" in hydra.sweep.dir=*) mkdir -p "${a#*=}/figures" ;; esac; done ;;
-    rovermarl.analysis) if [ "$3" = export ]; then mkdir -p "$5" && echo {} > "$5/compute.json";
-                        else echo claims > "$4/claims.md"; fi ;;
+    rovermarl.analysis) mkdir -p "$5" && echo {} > "$5/compute.json" ;;
     rovermarl.plot) mkdir -p "$3/figures" && echo png > "$3/figures/curves_solo.png" ;;
 esac
 """
@@ -83,7 +83,7 @@ def test_a_small_paper_study_writes_only_into_its_budget_dir(clone, tmp_path):
     assert all(c.endswith("generations=200 seeds=2 hydra.sweep.dir=outputs/paper") for c in commands[:6])
     assert commands[6:] == [f"-m rovermarl.analysis export outputs/paper {results} --generations 200",
                             f"-m rovermarl.plot {results} --format png --xscale log --out {results}/figures",
-                            f"-m rovermarl.analysis claims {results}"]
+                            f"{clone}/studies/paper/report.py {results}"]
     assert (clone / results / "claims.md").is_file() and (clone / results / "figures" / "curves_solo.png").is_file()
 
 

@@ -1,9 +1,9 @@
-"""``python -m rovermarl.analysis {export,claims,selectors,heldout,verify} ...`` (``--help`` describes each).
+"""``python -m rovermarl.analysis {export,selectors,heldout,verify} ...`` (``--help`` describes each).
 
 Exit status: 2 with one line on stderr for bad input; ``verify`` exits 1 when a team does not re-score (2 if a job's
 files or config were refused, after verifying the other jobs); ``heldout done JOB_DIR`` exits 0 if the job's summary
 has held-out scores. The studies' report generators live beside their launchers: ``python studies/<name>/report.py``
-(docs/ARCHITECTURE.md, Studies).
+(docs/ARCHITECTURE.md, Studies), the paper's claims C1-C8 among them (``studies/paper/report.py``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,8 @@ _say = say(PROG)
 
 
 def parser() -> argparse.ArgumentParser:
-    p = Parser(prog=PROG, description="Compact results and claim statistics of the reproduction study.")
+    p = Parser(prog=PROG, description="Compact results of a sweep, method comparisons, held-out scores, re-scored "
+               "teams.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
     e = sub.add_parser("export", help="compact results (summaries, exact and log-grid curves) of a sweep dir")
     e.add_argument("sweep", type=Path, help="sweep dir, e.g. outputs/paper")
@@ -31,9 +32,6 @@ def parser() -> argparse.ArgumentParser:
     e.add_argument("--trust-config", dest="trust", action="store_true",
                    help="let the Fig. 6 re-run build any class the sweep's config names (default: only the "
                    "classes of rovermarl's config groups, at their groups' nodes)")
-    c = sub.add_parser("claims", help="statistics of claims C1-C8 from a results dir")
-    c.add_argument("results", type=Path, help="results dir written by `export`")
-    _trust(c)
     s = sub.add_parser("selectors", help="the k-selector comparison table from a results dir")
     s.add_argument("results", type=Path, help="results dir written by `export`")
     s.add_argument("--against", default="adaptive", help="method the others are tested against")
@@ -57,14 +55,13 @@ def _trust(p: argparse.ArgumentParser) -> None:
 
 
 def main(argv=None) -> None:
+    if (sys.argv[1:] if argv is None else argv)[:1] == ["claims"]:                          # moved with its study
+        fail(PROG, "the claims report is the paper study's: python studies/paper/report.py RESULTS_DIR")
     args = parser().parse_args(argv)
     with one_line_errors(PROG):     # a result, sweep or config refused, or a file error: one line, exit 2
         if args.command == "export":
             from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6, log=_say, trust=args.trust)
-        elif args.command == "claims":
-            from rovermarl.analysis.claims import claims
-            print(claims(args.results, args.trust)[0], end="")
         elif args.command == "heldout":
             _heldout(args.action, args.paths)
         elif args.command == "verify":
