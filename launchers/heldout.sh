@@ -3,7 +3,7 @@
 # of RESULTS (default results/paper; also results/selectors, results/geometry) whose dir name matches JOBS (a shell
 # pattern, default *) is recomputed from its own overrides (`python -m rovermarl.config JOB_DIR`: read from its
 # config.yaml and summary.json and allow-listed, never from its dir name) into OUT, one job at a time on the embedded
-# Ray, then `python -m rovermarl.analysis heldout merge OUT RESULTS` adds each run's held-out score to the committed
+# Ray, then `python studies/heldout/report.py merge OUT RESULTS` adds each run's held-out score to the committed
 # summary.json and the runs' final teams as genomes.npz, after checking that every recomputed run ends at the
 # committed final score. Resumable, also across sessions: a job of RESULTS with held-out scores and genomes.npz is
 # skipped; one whose runs are in OUT resumes there. Commit RESULTS between sessions.
@@ -15,12 +15,13 @@ OUT="${OUT:-outputs/heldout/$(basename "$RESULTS")}"
 SEEDS="${SEEDS:-16}"
 PYTHON="${PYTHON:-python}"
 JOBS="${JOBS:-*}"
+MIGRATION="$(cd "$(dirname "$0")/.." && pwd)/studies/heldout/report.py"
 [ -d "$RESULTS" ] || { echo "$(basename "$0"): error: RESULTS=$RESULTS: no such directory" >&2; exit 2; }
 for summary in "$RESULTS"/$JOBS/summary.json; do
     [ -f "$summary" ] || continue
     name="$(basename "$(dirname "$summary")")"
     shown="${name@Q}"                                                     # a name's control characters escaped
-    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" -m rovermarl.analysis heldout done "$RESULTS/$name"; then
+    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" "$MIGRATION" done "$RESULTS/$name"; then
         echo "$(basename "$0"): $shown has held-out scores and final teams: skipped" >&2
         continue
     fi
@@ -32,5 +33,5 @@ for summary in "$RESULTS"/$JOBS/summary.json; do
     overrides=()
     [ -z "$listed" ] || mapfile -t overrides <<< "$listed"
     "$PYTHON" -m rovermarl.train "${overrides[@]}" "seeds=$SEEDS" "hydra.run.dir='$OUT/$name'" "$@"   # quoted: = and ,
-    "$PYTHON" -m rovermarl.analysis heldout merge "$OUT" "$RESULTS"
+    "$PYTHON" "$MIGRATION" merge "$OUT" "$RESULTS"
 done

@@ -211,7 +211,7 @@ def test_heldout_merge_writes_no_summary_through_a_linked_job_dir(sweep, tmp_pat
     shutil.copytree(sweep / JOB, tmp_path / "outside" / JOB)
     (results / JOB).symlink_to(tmp_path / "outside" / JOB)
     before = _untouched(tmp_path)
-    proc = run_cli("heldout", "merge", str(sweep), str(results), module="rovermarl.analysis")
+    proc = run_study("heldout", "merge", str(sweep), str(results))
     assert _untouched(tmp_path) == before
     assert "symbolic link" in _one_line(proc)
 
@@ -324,7 +324,7 @@ def test_heldout_launcher_takes_no_override_from_a_dir_name(tmp_path, attack):
 
 def test_heldout_done_reads_the_summary_through_the_safe_reader(tmp_path):
     job = _compact_job(tmp_path, "job")
-    done = lambda: run_cli("heldout", "done", str(job), module="rovermarl.analysis", timeout=60)  # noqa: E731
+    done = lambda: run_study("heldout", "done", str(job), timeout=60)  # noqa: E731
     assert done().returncode == 1
     summary = json.loads((job / "summary.json").read_text())
     (job / "summary.json").write_text(json.dumps({**summary, "heldout_score": {"0": 1.0}}))

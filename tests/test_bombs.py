@@ -247,7 +247,7 @@ def test_a_bomb_or_wrong_type_in_a_results_file_is_one_line_and_the_other_jobs_g
     assert verify.returncode == 2 and _named_once(verify, where, what).startswith("rovermarl.analysis: error: ")
     assert f"ok  {OTHER}: 1 teams re-score" in verify.stdout
     if name == "summary.json":
-        merge = run_cli("heldout", "merge", str(sw), str(sweep2), module="rovermarl.analysis", timeout=60)
+        merge = run_study("heldout", "merge", str(sw), str(sweep2), timeout=60)
         assert merge.returncode == 0 and _named_once(merge, where, what).endswith("skipped")
     else:
         resim = run_cli(str(sw / BOMBED / "runs" / "seed_000"), "--resim", "--no-viewer", module="rovermarl.replay",

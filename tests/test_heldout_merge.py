@@ -1,15 +1,16 @@
-"""analysis heldout merge: held-out scores of recomputed runs go into committed compact results only when every run
-ends at the committed final score; then the curves' numbers stay and the held-out column is added."""
+"""studies/heldout/report.py merge: held-out scores of recomputed runs go into committed compact results only when
+every run ends at the committed final score; then the curves' numbers stay and the held-out column is added."""
 
 import json
 import shutil
 
 import pytest
 
-from rovermarl.analysis.heldout import merge
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.verify import verify
-from tests.conftest import run_cli
+from tests.conftest import run_cli, study_module
+
+merge = study_module("heldout").merge
 
 
 def test_merge_adds_held_out_scores_of_the_same_runs_only(tmp_path):

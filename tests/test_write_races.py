@@ -18,7 +18,7 @@ import pytest
 from rovermarl.record import atomic, lock
 from rovermarl.record.safe_read import Unsafe
 from rovermarl.runner.job import run_job
-from tests.conftest import ROOT, make_cfg, run_cli
+from tests.conftest import ROOT, make_cfg, run_cli, study_module
 
 ROUNDS = 30
 JOB = "generations=30,k=1,setup=duo"
@@ -319,8 +319,9 @@ def test_run_json_written_beneath_the_job_dir_names_its_file_on_a_write_error(cf
 
 
 def test_a_job_dir_swapped_for_a_link_during_heldout_merge_takes_no_file_outside(sweep, tmp_path, capsys):
-    """issue 51: swapping a job dir during ``analysis heldout merge`` wrote outside 2 of 10 times."""
-    from rovermarl.analysis.__main__ import main
+    """issue 51: swapping a job dir during ``heldout merge`` (``studies/heldout/report.py``) wrote outside 2 of 10
+    times."""
+    main = study_module("heldout").main
 
     committed = json.loads((sweep / JOB / "summary.json").read_text())
     for key in ("heldout_score", "median_heldout_score"):
@@ -336,7 +337,7 @@ def test_a_job_dir_swapped_for_a_link_during_heldout_merge_takes_no_file_outside
         swapper = Swapper(results / JOB, victim, results)
         swapper.start()
         try:
-            main(["heldout", "merge", str(sweep), str(results)])
+            main(["merge", str(sweep), str(results)])
         except SystemExit as e:
             assert e.code == 2
             refused += 1

@@ -1,9 +1,9 @@
-"""``python -m rovermarl.analysis {export,selectors,heldout,verify} ...`` (``--help`` describes each).
+"""``python -m rovermarl.analysis {export,selectors,verify} ...`` (``--help`` describes each).
 
 Exit status: 2 with one line on stderr for bad input; ``verify`` exits 1 when a team does not re-score (2 if a job's
-files or config were refused, after verifying the other jobs); ``heldout done JOB_DIR`` exits 0 if the job's summary
-has held-out scores. The studies' report generators live beside their launchers: ``python studies/<name>/report.py``
-(docs/ARCHITECTURE.md, Studies), the paper's claims C1-C8 among them (``studies/paper/report.py``).
+files or config were refused, after verifying the other jobs). The studies' report generators live beside their
+launchers: ``python studies/<name>/report.py`` (docs/ARCHITECTURE.md, Studies), the paper's claims C1-C8
+(``studies/paper/report.py``) and the held-out migration (``studies/heldout/report.py``) among them.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ from pathlib import Path
 
 from rovermarl.analysis.cli import Parser, fail, one_line_errors, say
 from rovermarl.errors import printable
-from rovermarl.record.atomic import beneath
 
 PROG = "rovermarl.analysis"
 _say = say(PROG)
@@ -38,11 +37,6 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--x", choices=("generation", "evals"), default="generation", dest="x",
                    help="budgets and times in generations or in team evaluations (methods of different cost)")
     _trust(s)
-    h = sub.add_parser("heldout", help="add recomputed runs' held-out scores to committed compact results")
-    h.add_argument("action", choices=("merge", "done"))
-    h.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
-                   "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
-                   "has held-out scores)")
     v = sub.add_parser("verify", help="re-score every committed final team; exit 1 on any difference")
     v.add_argument("results", type=Path, help="a results dir (job dirs with genomes.npz), a sweep dir or a job dir")
     _trust(v)
@@ -54,16 +48,19 @@ def _trust(p: argparse.ArgumentParser) -> None:
                    help="build a world plug-in the jobs' configs name (its module runs code; default: refused)")
 
 
+MOVED = {"claims": "the claims report is the paper study's: python studies/paper/report.py RESULTS_DIR",
+         "heldout": "the held-out migration is beside its launcher: python studies/heldout/report.py {merge,done}"}
+
+
 def main(argv=None) -> None:
-    if (sys.argv[1:] if argv is None else argv)[:1] == ["claims"]:                          # moved with its study
-        fail(PROG, "the claims report is the paper study's: python studies/paper/report.py RESULTS_DIR")
+    command = (sys.argv[1:] if argv is None else argv)[:1]
+    if command and command[0] in MOVED:                                  # commands that moved with their study
+        fail(PROG, MOVED[command[0]])
     args = parser().parse_args(argv)
     with one_line_errors(PROG):     # a result, sweep or config refused, or a file error: one line, exit 2
         if args.command == "export":
             from rovermarl.analysis.export import export
             export(args.sweep, args.out, args.generations, fig6=args.fig6, log=_say, trust=args.trust)
-        elif args.command == "heldout":
-            _heldout(args.action, args.paths)
         elif args.command == "verify":
             _verify(args.results, args.trust)
         else:
@@ -85,19 +82,6 @@ def _verify(path: Path, trust: bool) -> None:
     bad = sum(not c.ok for c in checked)
     if bad:
         print(f"{PROG}: error: {bad} of {len(checked)} jobs do not re-score", file=sys.stderr)
-        sys.exit(1)
-
-
-def _heldout(action: str, paths: list[Path]) -> None:
-    from rovermarl.analysis import heldout
-
-    n = 2 if action == "merge" else 1
-    if len(paths) != n:
-        fail(PROG, f"heldout {action} takes {n} path(s)")
-    if action == "merge":
-        with beneath(paths[1], create=False):                           # a job dir swapped for a link: refused
-            heldout.merge(paths[0], paths[1], log=_say)
-    elif not heldout.done(paths[0]):
         sys.exit(1)
 
 

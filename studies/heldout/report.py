@@ -1,22 +1,29 @@
-"""Held-out scores and final teams for compact results committed before those features (issues 33 and 43).
+"""Held-out scores and final teams for compact results committed before those features (issues 33 and 43): a one-off
+migration, done for every committed results dir; kept for results made by an older rovermarl.
 
 ``launchers/heldout.sh`` recomputes each job's runs (a run is a pure function of its config and seed) into a sweep
-dir; ``python -m rovermarl.analysis heldout merge SWEEP_DIR RESULTS_DIR`` (:func:`merge`) then adds each run's
-held-out score and final team to the committed job, once every recomputed run ends at the committed final score, bit
-for bit: the curves do not change.
+dir; ``python studies/heldout/report.py merge SWEEP_DIR RESULTS_DIR`` (:func:`merge`) then adds each run's held-out
+score and final team to the committed job, once every recomputed run ends at the committed final score, bit for bit:
+the curves do not change. ``python studies/heldout/report.py done JOB_DIR`` exits 0 if the job's summary has
+held-out scores, else 1.
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from rovermarl.analysis.cli import Parser, fail, one_line_errors, say
 from rovermarl.analysis.export import final_teams
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import RunCurve
+from rovermarl.record.atomic import beneath
 from rovermarl.record.outputs import atomic_open, write_json
 from rovermarl.record.safe_read import check_tree, read_json
+
+PROG = "studies/heldout/report.py"
 
 
 def done(job: Path) -> bool:
@@ -70,3 +77,25 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
             updated.append(name)
             log(f"{name}: " + " and ".join(added) + " added")
     return updated
+
+
+def main(argv=None) -> None:
+    p = Parser(prog=PROG, description="Add recomputed runs' held-out scores to committed compact results.")
+    p.add_argument("action", choices=("merge", "done"))
+    p.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
+                   "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
+                   "has held-out scores)")
+    args = p.parse_args(argv)
+    n = 2 if args.action == "merge" else 1
+    if len(args.paths) != n:
+        fail(PROG, f"{args.action} takes {n} path(s)")
+    with one_line_errors(PROG):
+        if args.action == "merge":
+            with beneath(args.paths[1], create=False):                  # a job dir swapped for a link: refused
+                merge(args.paths[0], args.paths[1], log=say(PROG))
+        elif not done(args.paths[0]):
+            sys.exit(1)
+
+
+if __name__ == "__main__":
+    main()
