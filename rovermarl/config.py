@@ -96,7 +96,7 @@ def compose_jobs(argv: list[str], multirun: bool, config_name: str = "config",
             try:
                 cfgs.append(compose(config_name, overrides=job))
             except (HydraException, ValueError, TypeError) as e:  # Hydra raises the last two on odd overrides
-                raise _composition_error(e, job, config_name) from None
+                raise _composition_error(e, job, config_name, compose) from None
             except yaml.YAMLError as e:   # a config file's YAML: a !!python/... tag (the safe loader refuses it), ...
                 where = getattr(e, "problem_mark", None)
                 raise errors.ConfigError("config file", str(where.name) if where else "?",
@@ -131,7 +131,7 @@ def _with_searchpath(job: list[str], config_dir: str) -> list[str]:
     return [*job, f"hydra.searchpath=[{path}]"]
 
 
-def _composition_error(e: Exception, job: list[str], config_name: str = "config") -> errors.ConfigError:
+def _composition_error(e: Exception, job: list[str], config_name: str = "config", compose=None) -> errors.ConfigError:
     from hydra.errors import MissingConfigException
     if isinstance(e, MissingConfigException) and e.missing_cfg_file and e.options is not None:
         group, _, option = str(e.missing_cfg_file).rpartition("/")
@@ -145,9 +145,22 @@ def _composition_error(e: Exception, job: list[str], config_name: str = "config"
     m = re.search(r"Could not override '([^']+)'|Error merging override ([^=\s]+)|Multiple values for ([^\s.]+)", msg)
     key = next((g for g in m.groups() if g), "override") if m else "override"
     if re.search(r"Key '([^']+)' is not in struct|To append to your config use", msg):
-        return errors.ConfigError(key, _value_of(key, job), "unknown key; check the spelling, or add it with "
-                                  f"+{key}=... if a plug-in needs it")
+        plugin = f" (+{key}=... adds a key a plug-in's yaml lacks)" if "." in key else ""
+        allowed = _keys_beside(key, job, config_name, compose)
+        return errors.ConfigError(key, _value_of(key, job), f"unknown key{allowed}{plugin}")
     return errors.ConfigError(key, _value_of(key, job), msg)
+
+
+def _keys_beside(key: str, job: list[str], config_name: str, compose) -> str:
+    """``; allowed: a, b``: the keys of ``key``'s section in the job composed without ``key`` (empty if that fails)."""
+    section = key.rpartition(".")[0]
+    rest = [a for a in job if a.partition("=")[0].lstrip("+~") != key]
+    try:
+        node = OmegaConf.select(compose(config_name, overrides=rest), section) if section else compose(config_name,
+                                                                                                        overrides=rest)
+    except Exception:                                   # another problem of the job: its own error comes next
+        return ""
+    return f"; allowed: {', '.join(sorted(node))}" if isinstance(node, DictConfig) and len(node) else ""
 
 
 def _value_of(key: str, job: list[str]):

@@ -98,7 +98,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(f"{PROG}: error: {printable(e, 2000)}", file=sys.stderr)
         sys.exit(2)
     n_files = sum(len(f["files"]) for f in index["figures"])
-    print(f"{PROG}: {len(index['figures'])} figures ({n_files} files) in {out}")
+    n = len(index["figures"])
+    print(f"{PROG}: {n} figure{'s' * (n != 1)} ({n_files} files) in {out}")
 
 
 def default_out(path: Path) -> Path:

@@ -180,13 +180,17 @@ def test_generated_k_arms_outside_1_to_n(n, arms):
     assert msg.startswith("k.arms=") and f"in 1..{n}" in msg, msg
 
 
+MORE_K = "k.value={}: must be an integer in 1..2: k cannot mutate more rovers than env.n_rovers=2"
+
+
 @given(n=st.integers(1, 3), k=st.integers(2, 9))
 @SETTINGS
 def test_generated_fixed_k_above_n(n, k):
     if k <= n:
         return
     argv = [f"env.n_rovers={n}", f"k={k}"] if k <= 4 else [f"env.n_rovers={n}", f"k.value={k}"]
-    assert train_error(*argv) == f"k.value={k}: must be an integer in 1..{n}"
+    assert train_error(*argv) == (f"k.value={k}: must be an integer in 1..{n}: k cannot mutate more rovers than "
+                                  f"env.n_rovers={n}")
 
 
 # ---- hand-picked cases ------------------------------------------------------------------------------------------
@@ -205,6 +209,8 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["levels=[a,4]"], "levels[0]=a: must be a finite number"),
     (["k=adaptive", "k.reward=best"], "k.reward=best: must be one of improved, gain"),
     (["parallel._target_=dask"], "parallel._target_=dask: cannot be imported"),
+    (["+env._target_=nowhere_mod.W"], "env._target_=nowhere_mod.W: cannot be imported (ModuleNotFoundError: No module "
+                                      "named 'nowhere_mod'); run from its module's folder or put that on PYTHONPATH"),
     (["parallel._target_=rovermarl.policy.MLP"], "parallel._target_=rovermarl.policy.MLP: must name a subclass of "
                                                  "rovermarl.parallel.Backend"),
     (["ray.address=5"], "ray.address=5: must be null"),
@@ -250,6 +256,11 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["+policy.layers=2"], "policy.layers=2: unknown key; allowed: hidden, init_high, init_low"),
     (["+setup.colour=red"], "setup.colour=red: unknown key; allowed: coupling, coupling_level, name, value"),
     (["k.arms=[0]"], "k.arms=[0]: unknown key"),  # a fixed k has no arms
+    (["env.gravity=9"], "env.gravity=9: unknown key; allowed: dtype, episodes, n_rovers, obs_radius, poi_distance, "
+                        "poi_type, reward, sensor_range, speed, start_box, steps, v_max, w_max_deg (+env.gravity=... "
+                        "adds a key a plug-in's yaml lacks)"),              # the keys first: the + hint is no dead end
+    (["generatons=5"], "generatons=5: unknown key; allowed: algorithm, budget, checkpoint, env, evaluation, "
+                       "generations, k, levels"),
     # missing keys
     (["~setup.coupling"], "setup.coupling=None: missing"),
     (["~setup.value"], "setup.value=None: missing"),
@@ -271,12 +282,12 @@ CASES = [  # (argv, the start of the message after "rovermarl.train: error: ")
     (["k=adaptive", "k.arms=[1,5]"], "k.arms=[1, 5]: every k must be an integer in 1..4"),
     (["k=adaptive", "k.arms=[2,2]"], "k.arms=[2, 2]: must be a non-empty list of distinct k"),
     (["k=adaptive", "k.arms=[0]"], "k.arms=[0]: every k must be an integer in 1..4"),
-    (["env.n_rovers=2", "k=3"], "k.value=3: must be an integer in 1..2"),
-    (["env.n_rovers=2", "k=4"], "k.value=4: must be an integer in 1..2"),
+    (["env.n_rovers=2", "k=3"], MORE_K.format(3)),
+    (["env.n_rovers=2", "k=4"], MORE_K.format(4)),
     (["env.n_rovers=3", "k=adaptive", "k.arms=[1,2,3,4]"], "k.arms=[1, 2, 3, 4]: every k must be an integer in 1..3"),
     (["setup=duo", "env.n_rovers=1"], "setup.coupling[0]=2: must be an integer in 1..1"),
     (["-m", "k=1,2,7", "setup=solo,duo"], "k=7: no such option"),
-    (["-m", "env.n_rovers=4,2", "k=3"], "k.value=3: must be an integer in 1..2"),
+    (["-m", "env.n_rovers=4,2", "k=3"], MORE_K.format(3)),
     # malformed overrides
     (["k="], "k='': no such option"),
     (["=3"], "override==3: has no key"),
@@ -399,7 +410,7 @@ SUBPROCESS = [  # (module, argv with {t} for the trees dir, the start of the mes
     ("rovermarl.train", ["team=mixed"], "team=mixed: no such option"),
     ("rovermarl.train", ["+env.gravity=9"], "env.gravity=9: unknown key"),
     ("rovermarl.train", ["~policy.hidden"], "policy.hidden=None: missing"),
-    ("rovermarl.train", ["env.n_rovers=2", "k=4"], "k.value=4: must be an integer in 1..2"),
+    ("rovermarl.train", ["env.n_rovers=2", "k=4"], MORE_K.format(4)),
     ("rovermarl.train", ["-m", "k=adaptive", "k.arms=[1,5]", "setup=solo,duo"], "k.arms=[1, 5]: every k"),
     ("rovermarl.train", ["=3"], "override==3: has no key"),
     ("rovermarl.train", ["k=1,2"], "k=1,2: is a sweep; add -m"),

@@ -46,7 +46,7 @@ class Undeclared(Obstacles):
 
 @pytest.mark.parametrize("cls, wrote", [(Unfilled, 46), (Undeclared, 46)])
 def test_sense_is_checked_against_the_declared_blocks_in_one_line(cls, wrote):
-    said = f"{cls.__name__}.sense={wrote}: rows filled, but obs_blocks declares"
+    said = rf"{cls.__name__}'s hook sense \(.*obstacles.py\) fills {wrote} observation rows, but obs_blocks declares"
     with pytest.raises(errors.ConfigError, match=said) as err:
         cls(**SETUP)
     assert "\n" not in str(err.value)

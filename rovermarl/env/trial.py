@@ -84,10 +84,11 @@ def check_sense(world) -> None:
     if not filled[:d].all() or filled[d:].any():
         wrote = int(np.flatnonzero(filled).max(initial=-1)) + 1
         blocks = ", ".join(f"{name} {low.size}" for name, low, _ in world.obs_blocks())
-        raise errors.ConfigError(f"{type(world).__name__}.sense", wrote, f"rows filled, but obs_blocks declares "
-                                 f"{d} ({blocks}): sense must fill each of them and no more"
-                                 + ("" if filled[d:].any() or not filled[:d].any() else
-                                    f"; rows left unfilled: {np.flatnonzero(~filled[:d]).tolist()[:8]}"))
+        fn = world.hooks.sense.py_func
+        raise errors.PluginError(f"{type(world).__name__}'s hook sense ({fn.__code__.co_filename}) fills {wrote} "
+                                 f"observation rows, but obs_blocks declares {d} ({blocks}): sense must fill each "
+                                 "of them and no more" + ("" if filled[d:].any() or not filled[:d].any() else
+                                 f"; rows left unfilled: {np.flatnonzero(~filled[:d]).tolist()[:8]}"))
 
 
 def check_state(world) -> None:

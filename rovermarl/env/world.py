@@ -390,8 +390,9 @@ def world_class(target: str | None, trust: bool | Collection[str] = False) -> ty
     try:
         cls = pkgutil.resolve_name(target)
     except Exception as e:                              # its own error, in one line (a plug-in refused when made)
+        where = "; run from its module's folder or put that on PYTHONPATH" * isinstance(e, ModuleNotFoundError)
         raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: "
-                                 f"{' '.join(str(e).split())})") from None
+                                 f"{' '.join(str(e).split())}){where}") from None
     if not (isinstance(cls, type) and issubclass(cls, World)):
         raise errors.ConfigError("env._target_", target, "must name a subclass of rovermarl.worlds.World")
     return no_dataclass(cls)
