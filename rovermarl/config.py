@@ -145,22 +145,26 @@ def _composition_error(e: Exception, job: list[str], config_name: str = "config"
     m = re.search(r"Could not override '([^']+)'|Error merging override ([^=\s]+)|Multiple values for ([^\s.]+)", msg)
     key = next((g for g in m.groups() if g), "override") if m else "override"
     if re.search(r"Key '([^']+)' is not in struct|To append to your config use", msg):
-        plugin = f" (+{key}=... adds a key a plug-in's yaml lacks)" if "." in key else ""
         allowed = _keys_beside(key, job, config_name, compose)
-        return errors.ConfigError(key, _value_of(key, job), f"unknown key{allowed}{plugin}")
+        return errors.ConfigError(key, _value_of(key, job), f"unknown key{allowed}")
     return errors.ConfigError(key, _value_of(key, job), msg)
 
 
 def _keys_beside(key: str, job: list[str], config_name: str, compose) -> str:
-    """``; allowed: a, b``: the keys of ``key``'s section in the job composed without ``key`` (empty if that fails)."""
+    """``; allowed: a, b`` and, in a section, how a plug-in's own key is added: the keys of ``key``'s section as its
+    options' yaml declares them (the job composed with its group choices and ``hydra.*`` only); empty if that fails."""
     section = key.rpartition(".")[0]
-    rest = [a for a in job if a.partition("=")[0].lstrip("+~") != key]
+    name = [a.partition("=")[0].lstrip("+~") for a in job]
+    choices = [a for a, k in zip(job, name, strict=True) if k != key and ("." not in k or k.startswith("hydra."))]
     try:
-        node = OmegaConf.select(compose(config_name, overrides=rest), section) if section else compose(config_name,
-                                                                                                        overrides=rest)
-    except Exception:                                   # another problem of the job: its own error comes next
+        node = compose(config_name, overrides=choices)
+    except Exception:                                   # another problem of the job's choices: no list
         return ""
-    return f"; allowed: {', '.join(sorted(node))}" if isinstance(node, DictConfig) and len(node) else ""
+    node = OmegaConf.select(node, section) if section else node
+    if not isinstance(node, DictConfig):
+        return ""
+    keys = ", ".join(sorted(k for k in node if not k.startswith("_")))
+    return f"; allowed: {keys}" + (f" (+{key}=... adds a key a plug-in's yaml lacks)" if section else "")
 
 
 def _value_of(key: str, job: list[str]):

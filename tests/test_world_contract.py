@@ -46,7 +46,8 @@ class Undeclared(Obstacles):
 
 @pytest.mark.parametrize("cls, wrote", [(Unfilled, 46), (Undeclared, 46)])
 def test_sense_is_checked_against_the_declared_blocks_in_one_line(cls, wrote):
-    said = rf"{cls.__name__}'s hook sense \(.*obstacles.py\) fills {wrote} observation rows, but obs_blocks declares"
+    said = (rf"{cls.__name__}'s hook sense \(.*obstacles.py\) fills {wrote} observation rows, but its obs_blocks "
+            r"\(.*test_world_contract.py\) declares")                          # each file named
     with pytest.raises(errors.ConfigError, match=said) as err:
         cls(**SETUP)
     assert "\n" not in str(err.value)

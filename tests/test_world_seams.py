@@ -121,3 +121,16 @@ def test_an_attribute_error_inside_a_world_member_is_its_own():
 
     with pytest.raises(AttributeError, match="'Params' object has no attribute 'wind'"):
         Typo(coupling=(1,), value=(1.0,))
+
+
+def test_a_world_module_not_found_says_where_to_run_from_and_its_own_missing_import_does_not(tmp_path, monkeypatch):
+    from rovermarl.env.world import world_class
+    (tmp_path / "needs_more.py").write_text("import nonexistent_dep_xyz\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(errors.ConfigError) as gone:
+        world_class("nowhere_mod.W", trust=True)
+    assert str(gone.value).endswith("(ModuleNotFoundError: No module named 'nowhere_mod'); run from its module's "
+                                    "folder or put that on PYTHONPATH")
+    with pytest.raises(errors.ConfigError) as dep:
+        world_class("needs_more.W", trust=True)
+    assert str(dep.value).endswith("(ModuleNotFoundError: No module named 'nonexistent_dep_xyz')")

@@ -20,8 +20,7 @@ _say = say(PROG)
 
 
 def parser() -> argparse.ArgumentParser:
-    p = Parser(prog=PROG, description="Compact results of a sweep, method comparisons, held-out scores, re-scored "
-               "teams.")
+    p = Parser(prog=PROG, description="Compact results of a sweep, method comparisons, re-scored teams.")
     sub = p.add_subparsers(dest="command", required=True, parser_class=Parser)
     e = sub.add_parser("export", help="compact results (summaries, exact and log-grid curves) of a sweep dir")
     e.add_argument("sweep", type=Path, help="sweep dir, e.g. outputs/paper")
@@ -48,7 +47,8 @@ def _trust(p: argparse.ArgumentParser) -> None:
                    help="build a world plug-in the jobs' configs name (its module runs code; default: refused)")
 
 
-MOVED = {"claims": "the claims report is the paper study's: python studies/paper/report.py RESULTS_DIR",
+MOVED = {"claims": "the claims report is the paper study's: python studies/paper/report.py RESULTS_DIR "
+                   "[--trust-config]",
          "heldout": "the held-out migration is beside its launcher: python studies/heldout/report.py {merge,done}"}
 
 

@@ -6,6 +6,7 @@ mistake ends in one line naming the author's file (:func:`rovermarl.errors.plugi
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import os
 import sys
 from typing import NamedTuple
@@ -84,10 +85,10 @@ def check_sense(world) -> None:
     if not filled[:d].all() or filled[d:].any():
         wrote = int(np.flatnonzero(filled).max(initial=-1)) + 1
         blocks = ", ".join(f"{name} {low.size}" for name, low, _ in world.obs_blocks())
-        fn = world.hooks.sense.py_func
-        raise errors.PluginError(f"{type(world).__name__}'s hook sense ({fn.__code__.co_filename}) fills {wrote} "
-                                 f"observation rows, but obs_blocks declares {d} ({blocks}): sense must fill each "
-                                 "of them and no more" + ("" if filled[d:].any() or not filled[:d].any() else
+        sense, blocks_at = world.hooks.sense.py_func.__code__.co_filename, inspect.getsourcefile(world.obs_blocks)
+        raise errors.PluginError(f"{type(world).__name__}'s hook sense ({sense}) fills {wrote} observation rows, but "
+                                 f"its obs_blocks ({blocks_at}) declares {d} ({blocks}): sense must fill each of them "
+                                 "and no more" + ("" if filled[d:].any() or not filled[:d].any() else
                                  f"; rows left unfilled: {np.flatnonzero(~filled[:d]).tolist()[:8]}"))
 
 

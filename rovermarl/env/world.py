@@ -390,7 +390,8 @@ def world_class(target: str | None, trust: bool | Collection[str] = False) -> ty
     try:
         cls = pkgutil.resolve_name(target)
     except Exception as e:                              # its own error, in one line (a plug-in refused when made)
-        where = "; run from its module's folder or put that on PYTHONPATH" * isinstance(e, ModuleNotFoundError)
+        where = "; run from its module's folder or put that on PYTHONPATH" * (isinstance(e, ModuleNotFoundError)
+                                                                              and target.startswith(f"{e.name}."))
         raise errors.ConfigError("env._target_", target, f"cannot be imported ({type(e).__name__}: "
                                  f"{' '.join(str(e).split())}){where}") from None
     if not (isinstance(cls, type) and issubclass(cls, World)):
