@@ -153,6 +153,8 @@ def _composition_error(e: Exception, job: list[str], config_name: str = "config"
 def _keys_beside(key: str, job: list[str], config_name: str, compose) -> str:
     """``; allowed: a, b`` and, in a section, how a plug-in's own key is added: the keys of ``key``'s section as its
     options' yaml declares them (the job composed with its group choices and ``hydra.*`` only); empty if that fails."""
+    if compose is None:
+        return ""
     section = key.rpartition(".")[0]
     name = [a.partition("=")[0].lstrip("+~") for a in job]
     choices = [a for a, k in zip(job, name, strict=True) if k != key and ("." not in k or k.startswith("hydra."))]
