@@ -21,7 +21,13 @@ for summary in "$RESULTS"/$JOBS/summary.json; do
     [ -f "$summary" ] || continue
     name="$(basename "$(dirname "$summary")")"
     shown="${name@Q}"                                                     # a name's control characters escaped
-    if [ -f "$RESULTS/$name/genomes.npz" ] && "$PYTHON" "$MIGRATION" done "$RESULTS/$name"; then
+    status=0
+    "$PYTHON" "$MIGRATION" done "$RESULTS/$name" || status=$?          # 0: held-out scores; 3: none; else a failure
+    if [ "$status" -ne 0 ] && [ "$status" -ne 3 ]; then
+        echo "$(basename "$0"): $shown: $MIGRATION done failed (exit $status, above): stopped" >&2
+        exit "$status"
+    fi
+    if [ -f "$RESULTS/$name/genomes.npz" ] && [ "$status" -eq 0 ]; then
         echo "$(basename "$0"): $shown has held-out scores and final teams: skipped" >&2
         continue
     fi

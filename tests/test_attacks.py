@@ -325,13 +325,13 @@ def test_heldout_launcher_takes_no_override_from_a_dir_name(tmp_path, attack):
 def test_heldout_done_reads_the_summary_through_the_safe_reader(tmp_path):
     job = _compact_job(tmp_path, "job")
     done = lambda: run_study("heldout", "done", str(job), timeout=60)  # noqa: E731
-    assert done().returncode == 1
+    assert done().returncode == 3                                       # not done
     summary = json.loads((job / "summary.json").read_text())
     (job / "summary.json").write_text(json.dumps({**summary, "heldout_score": {"0": 1.0}}))
     assert done().returncode == 0
     (job / "summary.json").write_text("[" * 200_000 + "]" * 200_000)
     proc = done()
-    assert proc.returncode == 1 and proc.stderr == "", proc.stderr[-2000:]     # refused: recomputed, no traceback
+    assert proc.returncode == 3 and proc.stderr == "", proc.stderr[-2000:]     # refused: recomputed, no traceback
 
 
 @pytest.mark.parametrize("override, dropped", [("+hydra.callbacks.pwn._target_=res.pwn.X", False),

@@ -87,6 +87,21 @@ def test_a_small_paper_study_writes_only_into_its_budget_dir(clone, tmp_path):
     assert (clone / results / "claims.md").is_file() and (clone / results / "figures" / "curves_solo.png").is_file()
 
 
+def test_the_heldout_launcher_stops_when_its_done_check_fails(tmp_path):
+    """A failing ``done`` (a crash exits 1) is no "not done" (3): the launcher stops, nothing is recomputed."""
+    (tmp_path / "results" / "job").mkdir(parents=True)
+    (tmp_path / "results" / "job" / "summary.json").write_text("{}")
+    fake, log = tmp_path / "python", tmp_path / "launch.log"
+    fake.write_text('#!/usr/bin/env bash\necho "$*" >> "$LAUNCH_LOG"\n'
+                    'case "$1" in */studies/heldout/report.py) echo Traceback >&2; exit 1 ;; esac\n')
+    fake.chmod(0o755)
+    proc = subprocess.run(["bash", str(ROOT / "launchers" / "heldout.sh")], cwd=tmp_path, capture_output=True,
+                          text=True, env={**os.environ, "PYTHON": str(fake), "RESULTS": "results",
+                                          "LAUNCH_LOG": str(log)}, timeout=60)
+    assert proc.returncode == 1 and "done failed (exit 1, above): stopped" in proc.stderr, proc.stderr
+    assert log.read_text().splitlines() == [f"{ROOT}/studies/heldout/report.py done results/job"]
+
+
 @pytest.mark.skipif(os.environ.get("ROVERMARL_SLOW_LAUNCHER_TEST") != "1",
                     reason="the real small study takes minutes: set ROVERMARL_SLOW_LAUNCHER_TEST=1")
 def test_a_real_small_paper_study_leaves_the_committed_results_alone(tmp_path):

@@ -5,7 +5,7 @@ migration, done for every committed results dir; kept for results made by an old
 dir; ``python studies/heldout/report.py merge SWEEP_DIR RESULTS_DIR`` (:func:`merge`) then adds each run's held-out
 score and final team to the committed job, once every recomputed run ends at the committed final score, bit for bit:
 the curves do not change. ``python studies/heldout/report.py done JOB_DIR`` exits 0 if the job's summary has
-held-out scores, else 1.
+held-out scores, 3 if not (or if it is refused: it is recomputed); any other status is a failure of its own.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ from rovermarl.record.outputs import atomic_open, write_json
 from rovermarl.record.safe_read import check_tree, read_json
 
 PROG = "studies/heldout/report.py"
+NOT_DONE = 3                    # done's "no held-out scores": apart from a crash's 1, which heldout.sh must not skip
 
 
 def done(job: Path) -> bool:
@@ -84,7 +85,7 @@ def main(argv=None) -> None:
     p.add_argument("action", choices=("merge", "done"))
     p.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
                    "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
-                   "has held-out scores)")
+                   "has held-out scores, 3 if not)")
     args = p.parse_args(argv)
     n = 2 if args.action == "merge" else 1
     if len(args.paths) != n:
@@ -94,7 +95,7 @@ def main(argv=None) -> None:
             with beneath(args.paths[1], create=False):                  # a job dir swapped for a link: refused
                 merge(args.paths[0], args.paths[1], log=say(PROG))
         elif not done(args.paths[0]):
-            sys.exit(1)
+            sys.exit(NOT_DONE)
 
 
 if __name__ == "__main__":
