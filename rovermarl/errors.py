@@ -96,11 +96,11 @@ def _show(value) -> str:
     return str(value)
 
 
-def integer(key: str, value, lo: int | None = None, hi: int | None = None) -> int:
-    """``value`` as an int in [lo, hi], else :class:`ConfigError`."""
+def integer(key: str, value, lo: int | None = None, hi: int | None = None, why: str = "") -> int:
+    """``value`` as an int in [lo, hi], else :class:`ConfigError` (``why``, if given, after the bounds)."""
     bad = isinstance(value, bool) or not isinstance(value, int)
     if bad or (lo is not None and value < lo) or (hi is not None and value > hi):
-        raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}")
+        raise ConfigError(key, value, f"must be an integer{_range(lo, hi)}" + (f": {why}" if why else ""))
     return int(value)
 
 

@@ -63,9 +63,7 @@ class Params:
         if not isinstance(self.coupling, (list, tuple)) or len(self.coupling) == 0:
             raise errors.ConfigError("setup.coupling", self.coupling, "must be a non-empty list of integers")
         for j, c in enumerate(self.coupling):
-            if isinstance(c, bool) or not isinstance(c, int) or not 1 <= c <= n:
-                raise errors.ConfigError(f"setup.coupling[{j}]", c, f"must be an integer in 1..{n}: a POI "
-                                         f"cannot need more rovers than env.n_rovers={n}")
+            errors.integer(f"setup.coupling[{j}]", c, 1, n, f"a POI cannot need more rovers than env.n_rovers={n}")
         if not isinstance(self.value, (list, tuple)) or len(self.value) != len(self.coupling):
             raise errors.ConfigError("setup.value", self.value,
                                      f"must be a list of {len(self.coupling)} numbers, one per POI")

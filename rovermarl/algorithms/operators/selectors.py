@@ -81,10 +81,8 @@ class FixedK(KSelector):
 
     def __init__(self, value: int, n_agents: int, f_max: float = 1.0):
         super().__init__(n_agents, f_max)
-        if isinstance(value, int) and not isinstance(value, bool) and value > n_agents:
-            raise errors.ConfigError("value", value, f"must be an integer in 1..{n_agents}: k cannot mutate more "
-                                     f"rovers than env.n_rovers={n_agents}")
-        self.value = errors.integer("value", value, 1, n_agents)
+        self.value = errors.integer("value", value, 1, n_agents, f"k cannot mutate more rovers than "
+                                    f"env.n_rovers={n_agents}")
         self.arms = (self.value,)
 
     def choose(self, rng):
