@@ -68,13 +68,18 @@ regime() {  # regime NAME: its overrides (fixed is the default: its job names ar
     esac
 }
 
-done_clean() {  # done_clean JOB_DIR: its compact files are there, made from a committed tree, its regime recorded
-    [ -f "$1/summary.json" ] && [ -f "$1/curves.npz" ] && "$PYTHON" -c '
+done_clean() {  # done_clean JOB_DIR: 0 if its compact files are there, made from a committed tree, its regime
+    # recorded; 3 if not; any other status is a failure (an unreadable summary.json, a broken install)
+    [ -f "$1/summary.json" ] && [ -f "$1/curves.npz" ] || return 3
+    "$PYTHON" -c '
 import sys
 from rovermarl.record.safe_read import read_json
-s = read_json(sys.argv[1])
-sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and (s.get("provenance") or {}).get("dirty") is False else 1)
-' "$1/summary.json" 2>/dev/null
+try:
+    s = read_json(sys.argv[1])
+except Exception as e:                                          # one line, not a traceback
+    sys.exit(f"{sys.argv[1]}: {e}")
+sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and (s.get("provenance") or {}).get("dirty") is False else 3)
+' "$1/summary.json"
 }
 
 extra() {  # extra NAME: the modules a learner needs and its extra ("" when it needs none)
@@ -108,9 +113,14 @@ for l in "${ordered[@]}"; do
             read -ra par <<< "$PARALLEL"
             overrides=("${wo[@]}" "${lo[@]}" "${ro[@]}" "budget.agent_steps=$AGENT_STEPS" "record=off" "${par[@]}")
             name="$(job_name "${overrides[@]}" "seeds=$SEEDS")"
-            if done_clean "$RESULTS/$name"; then
+            status=0
+            done_clean "$RESULTS/$name" || status=$?
+            if [ "$status" -eq 0 ]; then
                 echo "$(basename "$0"): $name is in $RESULTS (clean, regime recorded): skipped" >&2
                 continue
+            elif [ "$status" -ne 3 ]; then
+                echo "$(basename "$0"): $name: the done check failed (exit $status, above): stopped" >&2
+                exit 1
             fi
             "$PYTHON" -m rovermarl.train -m "${overrides[@]}" "seeds=$SEEDS" "hydra.sweep.dir=$OUT" "$@"
             "$PYTHON" -m rovermarl.analysis export "$OUT" "$RESULTS" --no-fig6 --trust-config

@@ -102,6 +102,46 @@ def test_the_heldout_launcher_stops_when_its_done_check_fails(tmp_path):
     assert log.read_text().splitlines() == [f"{ROOT}/studies/heldout/report.py done results/job"]
 
 
+def test_the_learners_launcher_stops_on_an_unreadable_summary_and_skips_a_clean_job(tmp_path):
+    """The learners' done check: a clean job is skipped, a job without its files runs, and a summary.json it cannot
+    read stops the launcher in one line (before, any failure read as "not done" and the job ran again)."""
+    results = tmp_path / "results"
+    log = tmp_path / "launch.log"
+    wrapper = tmp_path / "python"                # the real Python for the check, a logged stand-in for the rest
+    wrapper.write_text(f'#!/usr/bin/env bash\nif [ "$1" = -c ]; then exec {sys.executable} "$@"; fi\n'
+                       'echo "$*" >> "$LAUNCH_LOG"\n')
+    wrapper.chmod(0o755)
+    env = {**os.environ, "PYTHONPATH": str(ROOT), "PYTHON": str(wrapper), "RESULTS": str(results),
+           "LAUNCH_LOG": str(log), "LEARNERS": "cces_k1", "WORLDS": "solo", "REGIMES": "fixed", "SEEDS": "2",
+           "AGENT_STEPS": "960", "DOC": str(tmp_path / "doc.md")}
+
+    def run():
+        return subprocess.run(["bash", str(ROOT / "launchers" / "learners.sh")], cwd=ROOT, capture_output=True,
+                              text=True, env=env, timeout=120)
+
+    proc = run()                                 # nothing there: the job runs, then export and the report
+    assert proc.returncode == 0, proc.stderr
+    assert "-m rovermarl.train -m setup=solo k=1" in log.read_text()
+    name = subprocess.run([sys.executable, "-c", "import sys; from rovermarl.config import job_dirs, "
+                           "quote_numeric_options; print(job_dirs(quote_numeric_options(sys.argv[1:]), True, '.')"
+                           "[0].name)", "setup=solo", "k=1", "budget.agent_steps=960", "record=off",
+                           "parallel=serial", "seeds=2"], capture_output=True, text=True, check=True, cwd=ROOT,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}).stdout.strip()
+    (results / name).mkdir(parents=True)
+    (results / name / "curves.npz").write_bytes(b"")
+    (results / name / "summary.json").write_text('{"train_ic": "fixed", "provenance": {"dirty": false}}')
+    log.unlink(missing_ok=True)
+    proc = run()                                 # clean: skipped
+    assert proc.returncode == 0 and "(clean, regime recorded): skipped" in proc.stderr, proc.stderr
+    assert not log.exists()                      # no command but the check
+    (results / name / "summary.json").write_text('{"train_ic": ')
+    log.unlink(missing_ok=True)
+    proc = run()                                 # unreadable: stopped, nothing recomputed
+    assert proc.returncode == 1, proc.stderr
+    assert "the done check failed (exit 1, above): stopped" in proc.stderr and "Traceback" not in proc.stderr
+    assert not log.exists()
+
+
 @pytest.mark.skipif(os.environ.get("ROVERMARL_SLOW_LAUNCHER_TEST") != "1",
                     reason="the real small study takes minutes: set ROVERMARL_SLOW_LAUNCHER_TEST=1")
 def test_a_real_small_paper_study_leaves_the_committed_results_alone(tmp_path):
