@@ -12,7 +12,7 @@ from kernel_helpers import act_plain, atan2_array, atan2_ranged_array, tanh_arra
 
 from rovermarl import make_world
 from rovermarl.env import kernel
-from rovermarl.env.kernel import checks, rules, stages
+from rovermarl.env.kernel import checks, fused, rules, stages
 from rovermarl.env.kernel.math import RANGED_MAX, RANGED_MIN
 
 RNG = np.random.default_rng(12345)
@@ -212,7 +212,7 @@ def test_sensing_takes_the_ranged_atan2_only_inside_its_promise():
         if trial < 4:
             assert same_bits(got, ranged)
     out = np.empty((0, n, world.obs_dim))                             # no episodes: nothing to read or write
-    kernel.sense(np.empty((0, n, 2)), np.empty((0, n)), world.poi_xy, world.task.sensor_type, world.sensor_range, out)
+    fused.observe(np.empty((0, n, 2)), np.empty((0, n)), world.kernel, (), out)
 
 
 # ---- the stages, one at a time, against the fused rollout ------------------------------------------------------
@@ -227,15 +227,15 @@ def same_bits(a, b):
 
 
 def stepwise(world, genomes, ic):
-    """T x (sense, act, move), then reward: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)."""
+    """T x (observe, act, step), then reward: xy (E, T+1, N, 2), heading (E, T+1, N), returns (E,)."""
     xy, heading = ic[0].copy(), ic[1].copy()
     e, n = heading.shape
     obs, actions = np.empty((e, n, world.obs_dim)), np.empty((e, n, 2))
     traj_xy, traj_heading = [xy.copy()], [heading.copy()]
     for _ in range(world.steps):
-        kernel.sense(xy, heading, world.poi_xy, world.task.sensor_type, world.sensor_range, obs)
+        fused.observe(xy, heading, world.kernel, (), obs)
         kernel.act(genomes, obs, world.policy.hidden, actions)
-        kernel.move(xy, heading, actions, world.v_max, world.w_max)
+        fused.step(xy, heading, actions, world.kernel, ())
         traj_xy.append(xy.copy())
         traj_heading.append(heading.copy())
     returns = np.empty(e)
@@ -264,7 +264,7 @@ def test_sense_and_act_give_the_fused_loops_numbers():
     xy = xy + np.random.default_rng(0).uniform(-20, 20, xy.shape)
     e, n, d = 5, 3, world.obs_dim
     obs = np.empty((e, n, d))
-    kernel.sense(xy, heading, world.poi_xy, world.task.sensor_type, world.sensor_range, obs)
+    fused.observe(xy, heading, world.kernel, (), obs)
     x, y, h = (np.ascontiguousarray(a.T).ravel() for a in (xy[..., 0], xy[..., 1], heading))   # q = i*E + e
     s, c, flat = np.empty(n * e), np.empty(n * e), np.empty(d * n * e)
     kernel.sincos_all(h, s, c)
@@ -324,7 +324,7 @@ def test_poi_test_has_one_home():
     np.testing.assert_array_equal(returns, world.team_return(xy))
 
 
-@pytest.mark.parametrize("fn", [kernel.sense, kernel.act, kernel.move, kernel.observers, kernel.payout,
+@pytest.mark.parametrize("fn", [kernel.act, kernel.observers, kernel.payout,
                                 kernel.reward, rules.within, rules.poi_of, checks.input_rows],
                          ids=lambda f: f.__name__)
 def test_docstring_examples_run(fn):

@@ -12,8 +12,7 @@ from rovermarl.env.kernel.math import atan2, sincos, sincos_all, tanh
 from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import max_return, observers, pairwise_sum, payout, reward, score, switched
 from rovermarl.env.kernel.rules import REWARDS, bearing, poi_of
-from rovermarl.env.kernel.stages import act, move, sense, sense_libm
+from rovermarl.env.kernel.stages import act, sense_libm
 
-__all__ = ["REWARDS", "KernelWorld", "act", "atan2", "bearing", "max_return", "move", "observers", "pairwise_sum",
-           "payout", "poi_of", "reward", "rollout", "score", "sense", "sense_libm", "sincos", "sincos_all", "switched",
-           "target", "tanh"]
+__all__ = ["REWARDS", "KernelWorld", "act", "atan2", "bearing", "max_return", "observers", "pairwise_sum", "payout",
+           "poi_of", "reward", "rollout", "score", "sense_libm", "sincos", "sincos_all", "switched", "target", "tanh"]

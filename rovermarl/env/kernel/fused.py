@@ -25,7 +25,7 @@ from rovermarl.env.kernel.lanes import in_precision, sane_teams, tile_flat, tile
 from rovermarl.env.kernel.math import FAST, sincos_all
 from rovermarl.env.kernel.record import KernelWorld
 from rovermarl.env.kernel.reward import score
-from rovermarl.env.kernel.stages import act_flat, flat_pose, flat_state, from_flat, pose_back, to_flat
+from rovermarl.env.kernel.stages import act_flat, flat_pose, from_flat, to_flat
 from rovermarl.jit import njit
 
 
@@ -149,12 +149,17 @@ def step(xy, heading, actions, w, s):
 
 @njit(**FAST)
 def _moved(xy, heading, actions, w, s):
-    """:func:`step`'s work; returns its flat state (``stages.flat_state``) after the move, for :func:`env_step`."""
+    """:func:`step`'s work; returns its flat state after the move (x, y, heading, sin, cos, a0, a1: (7, N*E), as
+    ``stages.flat_pose``), for :func:`env_step`."""
     n = heading.shape[1]
-    state = flat_state(xy, heading, actions)
+    state = flat_pose(xy, heading, 7)
+    to_flat(actions[:, :, 0], state[5])
+    to_flat(actions[:, :, 1], state[6])
     move(state[0], state[1], state[2], state[3], state[4], state[5], state[6], w, s)
     tick(state[0], state[1], n, w, s)
-    pose_back(state, xy, heading)
+    from_flat(state[0], xy[:, :, 0])
+    from_flat(state[1], xy[:, :, 1])
+    from_flat(state[2], heading)
     return state
 
 

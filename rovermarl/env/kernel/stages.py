@@ -1,16 +1,16 @@
 """The world in stages (numba): sense, act and move (SPEC sections 2-4; the reward stage is
-:mod:`~rovermarl.env.kernel.reward`). E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units,
-G genome length.
+:mod:`~rovermarl.env.kernel.reward`). E episodes, N rovers, P POIs, D = 3P + 2N observation size, H hidden units, G
+genome length.
 
-The public stages take batch-first arrays and run the same compiled loops (``*_flat``) as the fused
-:func:`~rovermarl.env.kernel.fused.rollout`, so ``sense -> act -> move`` then ``reward`` gives the rollout's numbers
-bit for bit. The flat layout (docs/WORLDS.md) keeps the pairs ``q = i*E + e`` rover-major in (N*E,) arrays and the
-observations feature-major in (D*N*E,), so that the loops over episodes are contiguous and LLVM vectorises them;
-indices there are unsigned (``U``): numba's negative-index wraparound blocks vectorisation. The small flat functions
-are inlined (no per-call array reference counting in the step loop) and take their caller's compile options, so
-every caller of ``act_flat``/``move_flat`` is ``FAST``. A function that stays a call of its own (``_mlp``,
-``_sense_rows``) has one way out (no break, no early return) and calls no other with its arrays: else numba keeps
-two atomic reference counts per array argument per call (on this Intel CPU, 13% of the rollout's time before).
+:func:`act` takes batch-first arrays and runs the same compiled loops (``*_flat``) as the fused
+:func:`~rovermarl.env.kernel.fused.rollout`, so ``fused.observe -> act -> fused.step`` then ``reward`` gives the
+rollout's numbers bit for bit. The flat layout (docs/WORLDS.md) keeps the pairs ``q = i*E + e`` rover-major in (N*E,)
+arrays and the observations feature-major in (D*N*E,), so that the loops over episodes are contiguous and LLVM
+vectorises them; indices there are unsigned (``U``): numba's negative-index wraparound blocks vectorisation. The small
+flat functions are inlined (no per-call array reference counting in the step loop) and take their caller's compile
+options, so every caller of ``act_flat``/``move_flat`` is ``FAST``. A function that stays a call of its own (``_mlp``,
+``_sense_rows``) has one way out (no break, no early return) and calls no other with its arrays: else numba keeps two
+atomic reference counts per array argument per call (on this Intel CPU, 13% of the rollout's time before).
 """
 
 from __future__ import annotations
@@ -26,33 +26,6 @@ from rovermarl.env.kernel.simd import UNITS, hidden_tile, lanes, output_tile, ou
 from rovermarl.jit import njit
 
 # ---- batch-first stages ------------------------------------------------------------------------------------------
-
-@njit(**FAST)
-def sense(xy, heading, poi_xy, poi_type, sensor_range, out):
-    """Observations of all rovers of all episodes: xy (E, N, 2), heading (E, N), poi_xy (P, 2), poi_type (P,)
-    -> out (E, N, D).
-
-    POI j fills ``[d / range, bearing / pi, type]`` at 3j; rover m fills ``[d / range, bearing / pi]`` at 3P + 2m
-    (own slot ``[0, 0]``); beyond ``sensor_range`` a target reads ``[1, 0, 0]`` / ``[1, 0]`` (:func:`reading`).
-
-    >>> import numpy as np
-    >>> xy = np.array([[[0.0, 0.0], [3.0, 4.0]]])                 # E = 1 episode, N = 2 rovers
-    >>> out = np.empty((1, 2, 3 + 4))                              # one POI, at (13, 0), of type 1
-    >>> sense(xy, np.zeros((1, 2)), np.array([[13.0, 0.0]]), np.ones(1), 30.0, out)
-    >>> out[0, 0].round(4).tolist()
-    [0.4333, 0.0, 1.0, 0.0, 0.0, 0.1667, 0.2952]
-    """
-    n_ep, n = heading.shape
-    ne = n * n_ep
-    d = 3 * poi_xy.shape[0] + 2 * n
-    if xy.shape != (n_ep, n, 2) or out.shape != (n_ep, n, d):
-        raise ValueError("sense: expected xy (E, N, 2), heading (E, N) and out (E, N, 3P + 2N)")
-    state = flat_pose(xy, heading, 5)
-    obs = np.empty(d * ne, dtype=xy.dtype)
-    sense_flat(state[0], state[1], state[3], state[4], n, poi_xy, poi_type, sensor_range, obs)
-    for k in range(d):
-        from_flat(obs[k * ne:(k + 1) * ne], out[:, :, k])
-
 
 @njit(**FAST)
 def act(genomes, obs, hidden, out):
@@ -84,30 +57,11 @@ def act(genomes, obs, hidden, out):
     from_flat(a[1], out[:, :, 1])
 
 
-@njit(**FAST)
-def move(xy, heading, actions, v_max, w_max, speed_mode=0):
-    """One step of motion, in place: xy (E, N, 2), heading (E, N), actions (E, N, 2). Each rover turns by
-    :func:`turn` first, then moves :func:`speed` along its new heading (``speed_mode``: the index of ``env.speed``
-    in :data:`~rovermarl.env.kernel.rules.SPEEDS`).
-
-    >>> import numpy as np
-    >>> xy, heading = np.zeros((1, 1, 2)), np.zeros((1, 1))
-    >>> move(xy, heading, np.array([[[1.0, 0.5]]]), 1.0, np.pi / 3)        # full speed, turn 30 degrees
-    >>> xy.round(4).tolist(), heading.round(4).tolist()
-    ([[[0.866, 0.5]]], [[0.5236]])
-    """
-    n_ep, n = heading.shape
-    if xy.shape != (n_ep, n, 2) or actions.shape != (n_ep, n, 2):
-        raise ValueError("move: expected xy (E, N, 2), heading (E, N) and actions (E, N, 2)")
-    state = flat_state(xy, heading, actions)
-    move_flat(state[0], state[1], state[2], state[3], state[4], state[5], state[6], v_max, w_max, speed_mode)
-    pose_back(state, xy, heading)
-
-
 @njit(cache=True)
 def sense_libm(xy, heading, poi_xy, poi_type, sensor_range, out):
-    """:func:`sense` with libm ``atan2``, ``wrap(atan2(dy, dx) - heading)`` and true division: the same readings
-    within a few ulp. ``World.observe`` reports these. xy (E, N, 2), heading (E, N) -> out (E, N, D)."""
+    """``fused.observe`` of the paper's world with libm ``atan2``, ``wrap(atan2(dy, dx) - heading)`` and true
+    division: the same readings within a few ulp. ``World.observe`` reports these. xy (E, N, 2), heading (E, N) -> out
+    (E, N, D)."""
     n = xy.shape[1]
     p = poi_xy.shape[0]
     for b in range(xy.shape[0]):
@@ -165,26 +119,11 @@ def flat_pose(xy, heading, rows):
     return state
 
 
-@njit(**FAST)
-def flat_state(xy, heading, actions):
-    """A step's inputs in the flat layout: :func:`flat_pose` (7 rows), then a0, a1 from actions (E, N, 2)."""
-    state = flat_pose(xy, heading, 7)
-    to_flat(actions[:, :, 0], state[5])
-    to_flat(actions[:, :, 1], state[6])
-    return state
-
-
-@njit(**FAST)
-def pose_back(state, xy, heading):
-    """The pose rows of :func:`flat_state`'s ``state`` back into xy (E, N, 2) and heading (E, N)."""
-    from_flat(state[0], xy[:, :, 0])
-    from_flat(state[1], xy[:, :, 1])
-    from_flat(state[2], heading)
-
-
 @njit(inline="always", **FAST)
 def sense_flat(x, y, sin_h, cos_h, n, poi_xy, poi_type, sensor_range, obs):
-    """:func:`sense` in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major. Where
+    """Observations in the flat layout: x, y, sin_h, cos_h (N*E,) of n rovers -> obs (D*N*E,) feature-major. POI j
+    fills ``[d / range, bearing / pi, type]`` at 3j; rover m fills ``[d / range, bearing / pi]`` at 3P + 2m (own slot
+    ``[0, 0]``); beyond ``sensor_range`` a target reads ``[1, 0, 0]`` / ``[1, 0]`` (:func:`reading`). Where
     :func:`in_range` holds (every step of a world of finite numbers at sane scales) the bearings take the ranged
     ``atan2`` (the same bits with fewer operations), else the general one; returns whether it held. Inlined: as a
     call of its own it counted references to its 7 arrays around its call of :func:`_sense_rows`, 16 atomic
@@ -288,7 +227,9 @@ def _squash(a, n, finite):
 
 @njit(inline="always", **FAST)
 def move_flat(x, y, heading, sin_h, cos_h, a0, a1, v_max, w_max, speed_mode):
-    """:func:`move` in the flat layout, in place: all arrays (N*E,); sin_h, cos_h follow the new heading."""
+    """One step of motion in the flat layout, in place: each rover turns by :func:`turn` first, then moves
+    :func:`speed` along its new heading (``speed_mode``: the index of ``env.speed`` in
+    :data:`~rovermarl.env.kernel.rules.SPEEDS`); all arrays (N*E,); sin_h, cos_h follow the new heading."""
     ne = x.shape[0]
     for q in range(ne):
         heading[q] = turn(heading[q], a1[q], w_max)
