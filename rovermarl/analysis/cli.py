@@ -6,7 +6,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import sys
-from pathlib import Path
 
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
@@ -38,14 +37,3 @@ def one_line_errors(prog: str):
 def say(prog: str):
     """A log function writing one line on stderr, prefixed ``prog:`` (quoted file text escaped)."""
     return lambda message: print(f"{prog}: {printable(message, 2000)}", file=sys.stderr)
-
-
-def section_main(prog: str, description: str, results: str, write, argv=None, doc: str = "docs/LEARNERS.md") -> None:
-    """The command line of a study whose report is a doc's generated section: ``RESULTS [--doc DOC]``, then
-    ``write(results, doc)``, with one-line errors."""
-    p = Parser(prog=prog, description=description)
-    p.add_argument("results", type=Path, help=results)
-    p.add_argument("--doc", type=Path, default=Path(doc), help="the doc whose section is replaced")
-    args = p.parse_args(argv)
-    with one_line_errors(prog):
-        write(args.results, args.doc)

@@ -18,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))           # the sibling study: its classification
-from learners.report import LEARNERS, classify  # noqa: E402
+from learners import report as learners  # noqa: E402
+from learners.report import LEARNERS, classify, replace_section, section_main  # noqa: E402
 
-from rovermarl.analysis import sections, stats  # noqa: E402
-from rovermarl.analysis.cli import section_main  # noqa: E402
+from rovermarl.analysis import stats  # noqa: E402
 from rovermarl.analysis.results import ResultsError  # noqa: E402
 from rovermarl.record.safe_read import read_json  # noqa: E402
 
@@ -179,12 +179,12 @@ def figure(results: Path, formats=("png",)) -> list[Path]:
 
 def block(doc: str) -> str | None:
     """The generated section of the doc (between its markers), or None."""
-    return sections.block(doc, BEGIN, END)
+    return learners.block(doc, BEGIN, END)
 
 
 def write(results: Path, doc: Path) -> None:
     """Replace the section of ``doc`` between its markers by :func:`report` and draw the figures."""
-    sections.replace(doc, BEGIN, END, report(results))
+    replace_section(doc, report(results), BEGIN, END)
     figure(results)
 
 

@@ -19,15 +19,17 @@ comparisons of that row; a difference is called one only at adjusted p < 0.05.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from rovermarl.analysis import sections, stats
-from rovermarl.analysis.cli import section_main
+from rovermarl.analysis import stats
+from rovermarl.analysis.cli import Parser, one_line_errors
 from rovermarl.analysis.curves import read_exported
 from rovermarl.analysis.results import ResultsError
+from rovermarl.record.atomic import atomic_open
 from rovermarl.record.safe_read import read_json
 
 WORLDS = ("solo", "duo", "trio", "obstacles", "random_pois", "moving_pois")
@@ -231,14 +233,38 @@ def figures(results: Path, formats=("png",)) -> list[Path]:
     return written
 
 
-def block(doc: str) -> str | None:
-    """The generated section of the doc (between its markers), or None."""
-    return sections.block(doc, BEGIN, END)
+# ---- a doc's generated section (this study's and the coupling study's) --------------------------------------------
+def block(doc: str, begin: str = BEGIN, end: str = END) -> str | None:
+    """The text of ``doc`` between the lines ``begin`` and ``end``, or None when the markers are missing."""
+    m = re.search(re.escape(begin) + r"\n(.*?)" + re.escape(end), doc, re.S)
+    return m[1] if m else None
+
+
+def replace_section(path: Path, text: str, begin: str = BEGIN, end: str = END) -> None:
+    """Replace the section of the doc ``path`` between its markers by ``text`` (one line if they are missing),
+    atomically."""
+    doc = Path(path).read_text()
+    if block(doc, begin, end) is None:
+        raise ResultsError(f"{path}: no {begin} ... {end} markers")
+    new = re.sub(re.escape(begin) + r"\n.*?" + re.escape(end), lambda _: f"{begin}\n{text}{end}", doc, flags=re.S)
+    with atomic_open(Path(path), "w") as f:
+        f.write(new)
+
+
+def section_main(prog: str, description: str, results: str, write, argv=None) -> None:
+    """The command line of a study whose report is a doc's generated section: ``RESULTS [--doc DOC]``, then
+    ``write(results, doc)``, with one-line errors."""
+    p = Parser(prog=prog, description=description)
+    p.add_argument("results", type=Path, help=results)
+    p.add_argument("--doc", type=Path, default=Path("docs/LEARNERS.md"), help="the doc whose section is replaced")
+    args = p.parse_args(argv)
+    with one_line_errors(prog):
+        write(args.results, args.doc)
 
 
 def write(results: Path, doc: Path) -> None:
     """Replace the section of ``doc`` between its markers by :func:`report` and draw the figures."""
-    sections.replace(doc, BEGIN, END, report(results))
+    replace_section(doc, report(results))
     figures(results)
 
 
