@@ -101,18 +101,6 @@ class MAPPO(SharedActor):
             raise errors.ConfigError("value_hidden", list(value_hidden), "must be one width, one or more times "
                                      "(e.g. [64, 64]: MultiAgentMLP's depth x num_cells)")
 
-    # ---- the budget --------------------------------------------------------------------------------------------
-    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
-        """One iteration's steps in team evaluations (``num_envs * n_steps`` environment steps of N agents)."""
-        return self.num_envs * self.n_steps / (self.world.episodes * self.world.steps)
-
-    def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        return self.num_envs * self.n_steps * self.world.n_rovers
-
-    def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        """Every training step is its own (its team's scoring each generation is a team evaluation besides)."""
-        return self.agent_steps_per_generation(fresh_ic)
-
     # ---- the networks ------------------------------------------------------------------------------------------
     def _loss(self) -> ClipPPOLoss:
         """A fresh actor, critic and loss (their initial weights from the torch generator in force)."""

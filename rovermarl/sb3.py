@@ -175,22 +175,6 @@ class PPO(SharedActor):
                               "activation_fn": torch.nn.Tanh,
                               "log_std_init": errors.number("log_std_init", log_std_init)}
 
-    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
-        """One iteration's steps in team evaluations (``num_envs * n_steps`` environment steps of N agents)."""
-        return self.num_envs * self.n_steps / (self.world.episodes * self.world.steps)
-
-    def check_run(self, fresh_ic: bool, local: bool) -> None:
-        if not fresh_ic and not local:
-            raise errors.ConfigError("parallel.ic_shards", "> 1", "PPO trains on the run's initial conditions in its "
-                                     "own process under evaluation.fresh_ic=false: use parallel.ic_shards=1")
-
-    def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        return self.num_envs * self.n_steps * self.world.n_rovers
-
-    def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
-        """Every training step is its own (its team's scoring each generation is a team evaluation besides)."""
-        return self.agent_steps_per_generation(fresh_ic)
-
     def _model(self, starts=None):
         env = VecEnv(self.num_envs, world=self.world, time_feature=True, starts=starts)
         return _SB3PPO(GenomePolicy, env, policy_kwargs=self.policy_kwargs, device="cpu", verbose=0, **self.kwargs)

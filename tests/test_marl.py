@@ -99,6 +99,9 @@ def test_budget_in_agent_steps_and_bad_settings_named():
         parts(to_plain(make_cfg("algorithm=mappo", "+algorithm.n_steps=20")))
     assert "\n" not in str(e.value)
     assert torch.get_num_threads() >= 1
+    cfg = compose_config("algorithm=ippo", "evaluation.fresh_ic=false", "parallel.ic_shards=2")
+    with pytest.raises(ConfigError, match=r"^parallel.ic_shards='> 1': IPPO trains on the run's initial conditions"):
+        validate(cfg)                                              # refused before any work (a traceback before)
 
 
 def test_a_mappo_job_killed_after_a_checkpoint_resumes_bit_identically(tmp_path):

@@ -37,6 +37,23 @@ class SharedActor(Algorithm):
             raise errors.ConfigError("n_steps", n_steps, f"must be a multiple of env.steps={self.world.steps} (each "
                                      f"{what}iteration starts on fresh episodes)")
 
+    def check_run(self, fresh_ic: bool, local: bool) -> None:
+        if not fresh_ic and not local:
+            raise errors.ConfigError("parallel.ic_shards", "> 1", f"{type(self).__name__} trains on the run's initial "
+                                     "conditions in its own process under evaluation.fresh_ic=false: use "
+                                     "parallel.ic_shards=1")
+
+    def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
+        """One iteration's steps in team evaluations (``num_envs * n_steps`` environment steps of N agents)."""
+        return self.num_envs * self.n_steps / (self.world.episodes * self.world.steps)
+
+    def agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
+        return self.num_envs * self.n_steps * self.world.n_rovers
+
+    def own_agent_steps_per_generation(self, fresh_ic: bool = False) -> int:
+        """Every training step is its own (its team's scoring each generation is a team evaluation besides)."""
+        return self.agent_steps_per_generation(fresh_ic)
+
     def _first(self, state: RunState, evaluate: Evaluator) -> Measured:
         """Score the first iterate; ``state`` gets its ``score`` (and ``best``)."""
         team = self._genomes(state.params)
