@@ -35,9 +35,9 @@ from rovermarl.algorithms.operators.team import HeterogeneousTeam, HomogeneousTe
 from rovermarl.env.kernel import fused, score, switched
 from rovermarl.env.kernel.compose import fill, load_generated
 from rovermarl.env.kernel.fused import rollout  # rollout
+from rovermarl.env.prepared import NO_FINAL
 from rovermarl.jit import njit
 
-_NO_FINAL = np.empty((0, 1, 2))
 _NO_POI = np.empty((0, 1), dtype=np.int16)
 
 
@@ -86,7 +86,7 @@ def arguments(algo, selector, rng_mut, rng_sel, parents, evaluate, observer) -> 
             *((selector.log_w, selector.probs.copy()) if exp3 else (np.zeros(1), np.ones(1))),
             rng_mut, n, isinstance(team, HomogeneousTeam), mut.p_gaussian, mut.sigma, mut.n_reset(parents.shape[1]),
             mut.low, mut.high, np.empty_like(parents),
-            xy0, h0, kernel_world, np.empty(h0.shape[0]), _NO_FINAL if final_xy is None else final_xy,
+            xy0, h0, kernel_world, np.empty(h0.shape[0]), NO_FINAL if final_xy is None else final_xy,
             np.empty((n, parents.shape[1]), dtype=xy0.dtype),           # in the kernel's precision (env.dtype)
             np.empty((0, 1, 1, 2)), np.empty((0, 1, 1)),
             np.empty(n, dtype=np.bool_), parent_poi, poi_xy, radius, algo.accept.strict)

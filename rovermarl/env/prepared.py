@@ -28,7 +28,7 @@ from rovermarl import jit
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
 MIN_TEAMS = 8           # a thread's chunk at least this many teams: a smaller one costs more to hand over than it saves
-_NO_FINAL = np.empty((0, 1, 2))
+NO_FINAL = np.empty((0, 1, 2))          # final_xy when none is kept (no first axis)
 _F64 = np.dtype(np.float64)
 _POOL: dict[int, tuple[int, ThreadPoolExecutor]] = {}   # pid: (threads, this process's pool); a forked child
                                                          # makes its own
@@ -103,7 +103,7 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
     chunks each of at least :data:`MIN_TEAMS` teams."""
     n, b, e = world.n_rovers, teams.shape[0] // world.n_rovers, p.episodes
     scores, returns, sane = np.empty(b), np.empty(b * e), np.empty(b, dtype=np.bool_)
-    final = _NO_FINAL if final_xy is None else final_xy
+    final = NO_FINAL if final_xy is None else final_xy
     per_pass = max(1, PASS_LANES // e)
     run = world.compiled.evaluate_many
     jit.say_if_cold(run, (teams, p.xy, p.heading, p.fields, returns, scores, sane, final, per_pass),

@@ -26,16 +26,24 @@ from rovermarl.env.kernel import record
 from rovermarl.env.kernel.compose import kernel_module
 from rovermarl.env.kernel.hooks import ROVERS, Hooks
 from rovermarl.env.params import DTYPES, Params, keywords
-from rovermarl.env.prepared import Prepared, Rollout, final_in, genomes_in, score_teams, warn_insane, workers_in
+from rovermarl.env.prepared import (
+    NO_FINAL,
+    Prepared,
+    Rollout,
+    final_in,
+    genomes_in,
+    score_teams,
+    warn_insane,
+    workers_in,
+)
 from rovermarl.env.starts import InitialConditions, Starts
 from rovermarl.env.task import Task
 from rovermarl.env.trial import State, check_params, check_sense, check_state, no_dataclass, plugin_homes, state_dims
 from rovermarl.jit import name_compiled, say_if_cold
 
-_NO_FINAL = np.empty((0, 1, 2))
 _NO_LAYOUT = np.empty((0, 0))
 
-__all__ = ["DTYPES", "Rollout", "World", "score", "world_class"]
+__all__ = ["DTYPES", "Rollout", "World", "world_class"]
 
 
 class World:
@@ -286,7 +294,7 @@ class World:
         e = p.episodes
         traj = Rollout(np.empty((e, self.steps + 1, self.n_rovers, 2)),
                        np.empty((e, self.steps + 1, self.n_rovers)), np.empty(e), p.ic.layout.copy())
-        args = (genomes.astype(self._float), p.xy, p.heading, p.kernel, traj.returns, traj.xy, traj.heading, _NO_FINAL)
+        args = (genomes.astype(self._float), p.xy, p.heading, p.kernel, traj.returns, traj.xy, traj.heading, NO_FINAL)
         say_if_cold(self.compiled.rollout, args, "the world's rollout")
         self.compiled.rollout(*args)
         return traj
@@ -337,7 +345,7 @@ class World:
         """(score, returns (E,)) of one team, with the least overhead (the genomes' check, one array, the call)."""
         p = ic if type(ic) is Prepared and ic.world is self else self.prepare(ic)
         g = genomes_in(genomes, self._team_shape, "genomes")
-        final_xy = _NO_FINAL if final_xy is None else final_in(final_xy, p.xy.shape)
+        final_xy = NO_FINAL if final_xy is None else final_in(final_xy, p.xy.shape)
         returns = np.empty(p.heading.shape[0])
         run = self.compiled.evaluate
         if not run.overloads:
@@ -365,11 +373,6 @@ class World:
         if layout.shape != heading.shape[:-1] + (self.layout_dim,):
             raise ValueError(f"expected layout {heading.shape[:-1] + (self.layout_dim,)}, got {layout.shape}")
         return xy, heading, layout
-
-
-def score(returns: np.ndarray) -> float:
-    """Mean of per-episode returns (E,): the float ``returns.mean()`` gives, with less overhead."""
-    return float(kernel.score(returns))
 
 
 OWN = (f"{__name__}.World", "rovermarl.env.World")          # env._target_ of rovermarl's own world

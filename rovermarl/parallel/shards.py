@@ -13,7 +13,7 @@ from omegaconf import OmegaConf
 
 from rovermarl.algorithms.base import Evaluator, Measured
 from rovermarl.env import Rollout, World
-from rovermarl.env.world import score
+from rovermarl.env.kernel import score
 
 
 @ray.remote(num_cpus=1)
@@ -66,9 +66,9 @@ class ShardedEvaluation(Evaluator):
         parts = ray.get([a.returns.remote(genomes) for a in self.actors])
         returns = np.concatenate([r for r, _ in parts])
         if self.final_xy is None:
-            return Measured(score(returns), None)
+            return Measured(float(score(returns)), None)
         self.final_xy[...] = np.concatenate([f for _, f in parts])
-        return Measured(score(returns), self.final_xy.copy())
+        return Measured(float(score(returns)), self.final_xy.copy())
 
     def rollout(self, genomes: np.ndarray) -> Rollout:
         """The slices' trajectories, concatenated in order: the local rollout's, episode by episode."""
