@@ -20,6 +20,7 @@ from pathlib import Path
 
 from hydra.experimental.callback import Callback
 
+from rovermarl.analysis.cli import Parser
 from rovermarl.analysis.levels import THRESHOLDS
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import SweepError
@@ -28,12 +29,6 @@ from rovermarl.record.atomic import beneath
 
 log = logging.getLogger("rovermarl.plot")
 PROG = "rovermarl.plot"
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line, no usage block
-        print(f"{PROG}: error: {message}", file=sys.stderr)
-        sys.exit(2)
 
 
 def _threshold(text: str) -> tuple[str, float]:
@@ -51,7 +46,7 @@ def _threshold(text: str) -> tuple[str, float]:
 def parser() -> argparse.ArgumentParser:
     from rovermarl.analysis.stamp import FORMATS  # light: matplotlib is imported when figures are drawn
 
-    p = _Parser(prog=PROG, description="Draw the paper's figures (PNG/PDF) from a sweep dir or one job dir.")
+    p = Parser(prog=PROG, description="Draw the paper's figures (PNG/PDF) from a sweep dir or one job dir.")
     p.add_argument("path", type=Path, help="sweep dir (from `rovermarl.train -m`) or one job dir")
     p.add_argument("--out", type=Path, default=None,
                    help="output dir (default: PATH/figures; for exported results outputs/figures/<name>)")

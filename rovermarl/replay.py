@@ -9,7 +9,6 @@ its own initial conditions, or on fresh ones drawn from ``--ic-seed``, and recor
 
 from __future__ import annotations
 
-import argparse
 import getpass
 import os
 import re
@@ -31,6 +30,7 @@ import yaml
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from rovermarl.analysis.cli import Parser
 from rovermarl.errors import ConfigError, plugin_errors, printable
 
 
@@ -232,12 +232,7 @@ def open_viewer(rrd: Path, viewer: bool = True, web: bool = False, web_port: int
 
 
 def main(argv: list[str] | None = None) -> None:
-    p = argparse.ArgumentParser(prog="rovermarl.replay", description=__doc__.splitlines()[0])
-
-    def error(message: str):  # one line, no usage block
-        print(f"rovermarl.replay: error: {message}", file=sys.stderr)
-        sys.exit(2)
-    p.error = error
+    p = Parser(prog="rovermarl.replay", description=__doc__.splitlines()[0])
     p.add_argument("path", type=Path)
     p.add_argument("--seed", type=int, help="which run of a job dir (default: the first)")
     p.add_argument("--resim", action="store_true", help="re-simulate the final genomes and record a new .rrd")

@@ -151,6 +151,14 @@ RESERVED_PREFIXES = ("behaviour_", "occupancy_")
 LOOPS = ("auto", "python", "compiled")   # algorithm.loop: which generation loop runs (an algorithm with one)
 
 
+def python_loop(loop: str, what: str) -> str:
+    """``algorithm.loop`` of an algorithm with no compiled loop (``what``, e.g. "the CCEA"): auto or python."""
+    if errors.choice("loop", loop, LOOPS) == "compiled":
+        raise errors.ConfigError("loop", loop, f"{what} has no compiled generation loop (auto and python run its "
+                                 "Python one)")
+    return loop
+
+
 @dataclass(kw_only=True)
 class RunState:
     """A run's state: what :meth:`Algorithm.init` returns and :meth:`Algorithm.advance` threads through. An algorithm

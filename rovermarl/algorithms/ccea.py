@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, build_operator, generator, init_range
+from rovermarl.algorithms.base import Algorithm, RunState, Series, build_operator, generator, init_range, python_loop
 from rovermarl.algorithms.credit import CREDITS, credit
 from rovermarl.algorithms.final_team import FINAL_TEAMS, keep_best
 
@@ -44,9 +44,7 @@ class CCEA(Algorithm):
                  init_low: float = -2.0, init_high: float = 2.0, final_team: str = "last", loop: str = "auto"):
         super().__init__(world)
         self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
-        if errors.choice("loop", loop, LOOPS) == "compiled":
-            raise errors.ConfigError("loop", loop, "the CCEA has no compiled generation loop (auto and python run "
-                                     "its Python one)")
+        python_loop(loop, "the CCEA")
         self.pop_size = errors.integer("pop_size", pop_size, 2, 100_000)
         self.elites = errors.integer("elites", elites, 1, self.pop_size - 1)   # slot 0: the best
         self.reward = errors.choice("reward", reward, CREDITS)

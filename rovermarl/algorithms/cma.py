@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import LOOPS, Algorithm, RunState, Series, generator, init_range
+from rovermarl.algorithms.base import Algorithm, RunState, Series, generator, init_range, python_loop
 
 
 @dataclass(kw_only=True)
@@ -48,8 +48,7 @@ class SepCMA(Algorithm):
     def __init__(self, world, sigma: float = 0.5, popsize: int | None = None, init_low: float = -2.0,
                  init_high: float = 2.0, loop: str = "auto"):
         super().__init__(world)
-        if errors.choice("loop", loop, LOOPS) == "compiled":
-            raise errors.ConfigError("loop", loop, "CMA-ES has no compiled generation loop (auto and python run it)")
+        python_loop(loop, "CMA-ES")
         self.sigma0 = errors.number("sigma", sigma, 0, lo_open=True)
         self.low, self.high = init_range(init_low, init_high)
         self.n = n = world.n_rovers * world.n_params

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from rovermarl import errors
-from rovermarl.algorithms.base import Algorithm, Evaluator, Measured, RunState
+from rovermarl.algorithms.base import Algorithm, Evaluator, Measured, RunState, python_loop
 from rovermarl.env import InitialConditions
 
 FINAL_TEAMS = ("last", "best")
@@ -29,7 +29,7 @@ class SharedActor(Algorithm):
     def _common_keys(self, loop: str, final_team: str, num_envs: int, n_steps: int, what: str = "") -> None:
         """Check the keys every such learner takes; ``n_steps`` a multiple of ``env.steps`` (each ``what`` iteration
         starts on fresh episodes)."""
-        errors.choice("loop", loop, ("auto", "python"))
+        python_loop(loop, type(self).__name__)
         self.final_team = errors.choice("final_team", final_team, FINAL_TEAMS)
         self.num_envs = errors.integer("num_envs", num_envs, 1, 1_000_000)
         self.n_steps = errors.integer("n_steps", n_steps, self.world.steps, 1_000_000)

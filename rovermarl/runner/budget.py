@@ -13,6 +13,8 @@ import math
 import os
 from dataclasses import dataclass
 
+import psutil
+
 from rovermarl import errors
 from rovermarl.env.world import World
 from rovermarl.parallel import backend
@@ -45,15 +47,8 @@ class Estimate:
 
 
 def available_memory() -> float:
-    """Bytes of memory available to a new job (``MemAvailable``; all physical memory where unknown)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    """Bytes of memory available to a new job (psutil's ``available``: ``MemAvailable`` on Linux)."""
+    return float(psutil.virtual_memory().available)
 
 
 def estimate(plain: dict, series_bytes: int = 32, per_generation: float = 1.0) -> Estimate:
