@@ -1,11 +1,9 @@
 """The multi-rover world (SPEC sections 1-3, 5): rollouts and team evaluation, on a world made of parts.
 
-An immutable :class:`World` holds its parts, none calling another: ``params`` (its configuration,
-:class:`~rovermarl.env.params.Params`; ``world.steps`` reads ``world.params.steps``), ``task``
-(:class:`~rovermarl.env.task.Task`: POIs and scoring), ``starts`` (:class:`~rovermarl.env.starts.Starts`), ``kernel``
-(the :class:`~rovermarl.env.kernel.KernelWorld` record the compiled rollout reads) and ``compiled`` (the module of its
-compiled functions). It holds the calls that run the rollout and the members a world plug-in may set, with the
-paper's values (``docs/WORLDS.md``, the one place of the contract). Building a World builds its kernel record and runs
+A :class:`World` holds its parts, none calling another: ``params`` (:class:`~rovermarl.env.params.Params`),
+``task`` (:class:`~rovermarl.env.task.Task`), ``starts`` (:class:`~rovermarl.env.starts.Starts`), ``kernel`` (the
+:class:`~rovermarl.env.kernel.KernelWorld` record the compiled rollout reads) and ``compiled`` (the module of its
+compiled functions); docs/ARCHITECTURE.md maps them and docs/WORLDS.md is a plug-in's contract. Building a World runs
 a plug-in's trial (:mod:`rovermarl.env.trial`): a bad plug-in fails there, in one line.
 """
 
