@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Held-out scores and final teams for compact results committed before those features (issues 33 and 43): every job
 # of RESULTS (default results/paper; also results/selectors, results/geometry) whose dir name matches JOBS (a shell
-# pattern, default *) is recomputed from its own overrides (`python -m rovermarl.config JOB_DIR`: read from its
+# pattern, default *) is recomputed from its own overrides (`studies/heldout/report.py overrides JOB_DIR`: read from its
 # config.yaml and summary.json and allow-listed, never from its dir name) into OUT, one job at a time on the embedded
 # Ray, then `python studies/heldout/report.py merge OUT RESULTS` adds each run's held-out score to the committed
 # summary.json and the runs' final teams as genomes.npz, after checking that every recomputed run ends at the
@@ -32,7 +32,7 @@ for summary in "$RESULTS"/$JOBS/summary.json; do
         continue
     fi
     # the job's overrides from its own files (config.yaml, summary.json), each allow-listed; never from its name
-    if ! listed="$("$PYTHON" -m rovermarl.config "$RESULTS/$name")"; then
+    if ! listed="$("$PYTHON" "$MIGRATION" overrides "$RESULTS/$name")"; then
         echo "$(basename "$0"): $shown: its overrides cannot be read (above): skipped" >&2
         continue
     fi

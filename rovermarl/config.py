@@ -1,8 +1,7 @@
 """Composition of an invocation's jobs and command-line handling, before any work (and before Ray starts).
 
 ``compose_config("k=2", "setup=duo")`` gives the job config the CLI would run; checks of a composed config are in
-:mod:`rovermarl.runner.validate`. ``python -m rovermarl.config JOB_DIR`` prints the overrides that recompute a job
-(:func:`overrides_of`, for ``launchers/heldout.sh``): read from its files, never from its name.
+:mod:`rovermarl.runner.validate`.
 """
 
 from __future__ import annotations
@@ -14,8 +13,8 @@ import yaml
 from omegaconf import DictConfig, OmegaConf
 
 from rovermarl import errors, hydra_compat
-from rovermarl.resources import CONF_DIR, composer, group_names, options
-from rovermarl.runner.identity import NOT_IN_DIR_NAMES, RUNTIME
+from rovermarl.resources import composer, group_names, options
+from rovermarl.runner.identity import NOT_IN_DIR_NAMES
 
 _INT = re.compile(r"[+-]?\d+")
 _GROUP_OVERRIDE = re.compile(r"^(?P<prefix>[+~]{0,2})(?P<group>[A-Za-z_][\w]*)(?P<at>@[\w.]+)?=(?P<value>.*)$")
@@ -188,120 +187,7 @@ def compose_config(*overrides: str) -> DictConfig:
         return compose("config", overrides=quote_numeric_options(list(overrides)))
 
 
-# ---- a job's overrides, read back -----------------------------------------------------------------------------------
-_KEY = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*")
-_OVERRIDE = re.compile(rf"(?P<key>{_KEY.pattern})=(?P<value>'?[\w.\-]{{1,100}}'?|\[[\w.\-, ]{{0,400}}\])")
-_PLAIN = (bool, int, float, str)
-
-
-def overrides_of(job_dir: Path) -> list[str]:
-    """The overrides that recompute the job of ``job_dir``, each one allow-listed (:func:`allowed`): its
-    ``.hydra/overrides.yaml`` (a job the CLI ran), else what its committed ``config.yaml`` and ``summary.json``
-    (``choices``) hold that the packaged defaults do not (compact results). Files are read through
-    :mod:`rovermarl.record.safe_read`, the dir's name never; one-line ConfigError or ``OSError`` for anything else."""
-    from rovermarl.record.safe_read import check_tree, read_json, read_yaml, safe_label
-
-    job_dir = Path(job_dir)
-    if safe_label(job_dir.name, "job dir") != job_dir.name or not job_dir.is_dir():
-        raise errors.ConfigError("job dir", job_dir.name, "must be a directory whose name is letters, digits, _.,=+-")
-    check_tree(job_dir, "job dir")
-    overrides_file = job_dir / ".hydra" / "overrides.yaml"
-    if overrides_file.is_file():
-        given = [str(o) for o in read_yaml(overrides_file, kind="overrides")]
-        base = _base([o for o in given if o.partition("=")[0] in group_names() and allowed(o, {}, str(overrides_file))])
-        return [o for o in given if allowed(o, base, str(overrides_file))]
-    source = str(job_dir / "config.yaml")
-    config = read_yaml(job_dir / "config.yaml", kind="config")      # its interpolations plain references (schemas)
-    config = _plain(OmegaConf.create(config)) if isinstance(config, dict) else {}
-    choices = (read_json(job_dir / "summary.json", kind="summary") or {}).get("choices") or {}
-    picked = [f"{g}={o}" for g, o in sorted(choices.items())
-              if g not in RUNTIME and o is not None and (g, o) not in _default_choices()]
-    base = _base(picked)
-    out = [*picked, *_differences(config, base, "", source)]
-    if (config.get("budget") or {}).get("agent_steps") is not None:        # generations follow from the budget
-        out = [o for o in out if not o.startswith("generations=")]
-    return [o for o in quote_numeric_options(out) if allowed(o, base, source)]
-
-
-def allowed(override: str, base: dict, source: str) -> bool:
-    """Whether ``override`` recomputes the job: True for ``key=value`` with a plain value (a word, a number or a list
-    of them: no ``+``, ``~``, quotes inside or interpolation) whose key is a config group (the value one of its
-    options) or a key of ``base`` (the packaged config of the job's options); False for a runtime setting or ``seeds``
-    (the launcher chooses those); else ConfigError naming it and ``source``."""
-    key = override.partition("=")[0]
-    if _KEY.fullmatch(key) and key.split(".")[0] in NOT_IN_DIR_NAMES:
-        return False
-    m = _OVERRIDE.fullmatch(override)
-    if m is None:
-        raise errors.ConfigError("override", override, "is not a plain KEY=VALUE (no +, ~, interpolation or "
-                                 "function), in " + source)
-    option = m["value"].strip("'")
-    if m["key"] in group_names():
-        if not (CONF_DIR / m["key"] / f"{option}.yaml").is_file():
-            raise errors.ConfigError(m["key"], option, f"is not an option of the packaged group, in {source}")
-        return True
-    node = base
-    for part in m["key"].split("."):
-        if not isinstance(node, dict) or part not in node:
-            raise errors.ConfigError(m["key"], m["value"], f"is not a key of the packaged config, in {source}")
-        node = node[part]
-    return True
-
-
-def _default_choices() -> set[tuple[str, str]]:
-    """(group, option) of the packaged config's defaults list."""
-    from rovermarl.resources import packaged
-    return {(g, str(o)) for item in packaged("config.yaml").get("defaults", []) if isinstance(item, dict)
-            for g, o in item.items()}
-
-
-def _differences(config, base, path: str, source: str) -> list[str]:
-    """``key=value`` for each plain value of ``config`` that differs from ``base`` (the packaged config of its
-    choices); ConfigError for a key ``base`` lacks or a list or node that differs in another way."""
-    out = []
-    for key, value in config.items():
-        name = f"{path}{key}"
-        if key == "_target_" or (not path and key in NOT_IN_DIR_NAMES) or base.get(key) == value:
-            continue
-        if key not in base:
-            raise errors.ConfigError(name, "...", f"is not a key of the packaged config, in {source}")
-        if isinstance(value, dict) and isinstance(base[key], dict):
-            out += _differences(value, base[key], f"{name}.", source)
-        elif isinstance(value, _PLAIN) or (isinstance(value, list) and all(isinstance(v, _PLAIN) for v in value)):
-            out.append(f"{name}=" + (f"[{','.join(map(str, value))}]" if isinstance(value, list) else str(value)))
-        else:
-            raise errors.ConfigError(name, type(value).__name__, f"differs from the packaged config, in {source}")
-    return out
-
-
-def _base(picked: list[str]) -> dict:
-    """The packaged config of the options ``picked`` (plain, resolved); composition errors in one line."""
-    from hydra.errors import HydraException
-    try:
-        return _plain(compose_config(*picked))
-    except (HydraException, ValueError, TypeError) as e:
-        raise _composition_error(e, picked) from None
-
-
-def _plain(cfg) -> dict:
-    return OmegaConf.to_container(cfg, resolve=True)
-
-
-def main(argv: list[str] | None = None) -> None:
-    """``python -m rovermarl.config JOB_DIR``: the job's overrides (:func:`overrides_of`), one a line; else one
-    line on stderr and exit 2."""
-    import sys
-
-    from rovermarl.errors import printable
-    argv = sys.argv[1:] if argv is None else argv
-    try:
-        if len(argv) != 1:
-            raise errors.ConfigError("arguments", " ".join(argv), "expected one JOB_DIR")
-        print("\n".join(overrides_of(Path(argv[0]))))
-    except (errors.ConfigError, OSError) as e:
-        print(f"rovermarl.config: error: {printable(e, 2000)}", file=sys.stderr)
-        sys.exit(2)
-
-
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":      # its one command left with the held-out migration, its one user
+    print("rovermarl.config: error: a job's overrides are read back by `python studies/heldout/report.py overrides "
+          "JOB_DIR` now", file=__import__("sys").stderr)
+    raise SystemExit(2)

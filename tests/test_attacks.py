@@ -341,7 +341,7 @@ def test_a_jobs_hydra_overrides_are_allow_listed(sweep, tmp_path, override, drop
     sw = _copy(sweep, tmp_path)
     path = sw / JOB / ".hydra" / "overrides.yaml"
     path.write_text(yaml.safe_dump([*yaml.safe_load(path.read_text()), override]))
-    proc = run_cli(str(sw / JOB), module="rovermarl.config", timeout=60)
+    proc = run_study("heldout", "overrides", str(sw / JOB), timeout=60)
     if dropped:
         assert proc.returncode == 0 and "ray" not in proc.stdout, proc.stdout + proc.stderr
         assert sorted(proc.stdout.split()) == ["generations=30", "k='1'", "setup=duo"]

@@ -6,22 +6,30 @@ dir; ``python studies/heldout/report.py merge SWEEP_DIR RESULTS_DIR`` (:func:`me
 score and final team to the committed job, once every recomputed run ends at the committed final score, bit for bit:
 the curves do not change. ``python studies/heldout/report.py done JOB_DIR`` exits 0 if the job's summary has
 held-out scores, 3 if not (or if it is refused: it is recomputed); any other status is a failure of its own.
+``python studies/heldout/report.py overrides JOB_DIR`` prints the overrides that recompute the job, one a line
+(:func:`overrides_of`: read from its files and allow-listed, never from its dir name).
 """
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
 import numpy as np
+from omegaconf import OmegaConf
 
 from rovermarl.analysis.cli import Parser, fail, one_line_errors, say
 from rovermarl.analysis.export import final_teams
 from rovermarl.analysis.results import ResultsError
 from rovermarl.analysis.sweep import RunCurve
+from rovermarl.config import compose_jobs, quote_numeric_options
+from rovermarl.errors import ConfigError
 from rovermarl.record.atomic import beneath
 from rovermarl.record.outputs import atomic_open, write_json
-from rovermarl.record.safe_read import check_tree, read_json
+from rovermarl.record.safe_read import check_tree, read_json, read_yaml, safe_label
+from rovermarl.resources import CONF_DIR, group_names, packaged
+from rovermarl.runner.identity import NOT_IN_DIR_NAMES, RUNTIME
 
 PROG = "studies/heldout/report.py"
 NOT_DONE = 3                    # done's "no held-out scores": apart from a crash's 1, which heldout.sh must not skip
@@ -80,12 +88,105 @@ def merge(sweep: Path, results: Path, log=print) -> list[str]:
     return updated
 
 
+# ---- a job's overrides, read back from its files ---------------------------------------------------------------
+_KEY = re.compile(r"[A-Za-z_]\w*(?:\.[A-Za-z_]\w*)*")
+_OVERRIDE = re.compile(rf"(?P<key>{_KEY.pattern})=(?P<value>'?[\w.\-]{{1,100}}'?|\[[\w.\-, ]{{0,400}}\])")
+_PLAIN = (bool, int, float, str)
+
+
+def overrides_of(job_dir: Path) -> list[str]:
+    """The overrides that recompute the job of ``job_dir``, each one allow-listed (:func:`allowed`): its
+    ``.hydra/overrides.yaml`` (a job the CLI ran), else what its committed ``config.yaml`` and ``summary.json``
+    (``choices``) hold that the packaged defaults do not (compact results). Files are read through
+    :mod:`rovermarl.record.safe_read`, the dir's name never; one-line ConfigError or ``OSError`` for anything else."""
+    job_dir = Path(job_dir)
+    if safe_label(job_dir.name, "job dir") != job_dir.name or not job_dir.is_dir():
+        raise ConfigError("job dir", job_dir.name, "must be a directory whose name is letters, digits, _.,=+-")
+    check_tree(job_dir, "job dir")
+    overrides_file = job_dir / ".hydra" / "overrides.yaml"
+    if overrides_file.is_file():
+        given = [str(o) for o in read_yaml(overrides_file, kind="overrides")]
+        base = _base([o for o in given if o.partition("=")[0] in group_names() and allowed(o, {}, str(overrides_file))])
+        return [o for o in given if allowed(o, base, str(overrides_file))]
+    source = str(job_dir / "config.yaml")
+    config = read_yaml(job_dir / "config.yaml", kind="config")      # its interpolations plain references (schemas)
+    config = _plain(OmegaConf.create(config)) if isinstance(config, dict) else {}
+    choices = (read_json(job_dir / "summary.json", kind="summary") or {}).get("choices") or {}
+    picked = [f"{g}={o}" for g, o in sorted(choices.items())
+              if g not in RUNTIME and o is not None and (g, o) not in _default_choices()]
+    base = _base(picked)
+    out = [*picked, *_differences(config, base, "", source)]
+    if (config.get("budget") or {}).get("agent_steps") is not None:        # generations follow from the budget
+        out = [o for o in out if not o.startswith("generations=")]
+    return [o for o in quote_numeric_options(out) if allowed(o, base, source)]
+
+
+def allowed(override: str, base: dict, source: str) -> bool:
+    """Whether ``override`` recomputes the job: True for ``key=value`` with a plain value (a word, a number or a list
+    of them: no ``+``, ``~``, quotes inside or interpolation) whose key is a config group (the value one of its
+    options) or a key of ``base`` (the packaged config of the job's options); False for a runtime setting or ``seeds``
+    (the launcher chooses those); else ConfigError naming it and ``source``."""
+    key = override.partition("=")[0]
+    if _KEY.fullmatch(key) and key.split(".")[0] in NOT_IN_DIR_NAMES:
+        return False
+    m = _OVERRIDE.fullmatch(override)
+    if m is None:
+        raise ConfigError("override", override, "is not a plain KEY=VALUE (no +, ~, interpolation or "
+                                 "function), in " + source)
+    option = m["value"].strip("'")
+    if m["key"] in group_names():
+        if not (CONF_DIR / m["key"] / f"{option}.yaml").is_file():
+            raise ConfigError(m["key"], option, f"is not an option of the packaged group, in {source}")
+        return True
+    node = base
+    for part in m["key"].split("."):
+        if not isinstance(node, dict) or part not in node:
+            raise ConfigError(m["key"], m["value"], f"is not a key of the packaged config, in {source}")
+        node = node[part]
+    return True
+
+
+def _default_choices() -> set[tuple[str, str]]:
+    """(group, option) of the packaged config's defaults list."""
+    return {(g, str(o)) for item in packaged("config.yaml").get("defaults", []) if isinstance(item, dict)
+            for g, o in item.items()}
+
+
+def _differences(config, base, path: str, source: str) -> list[str]:
+    """``key=value`` for each plain value of ``config`` that differs from ``base`` (the packaged config of its
+    choices); ConfigError for a key ``base`` lacks or a list or node that differs in another way."""
+    out = []
+    for key, value in config.items():
+        name = f"{path}{key}"
+        if key == "_target_" or (not path and key in NOT_IN_DIR_NAMES) or base.get(key) == value:
+            continue
+        if key not in base:
+            raise ConfigError(name, "...", f"is not a key of the packaged config, in {source}")
+        if isinstance(value, dict) and isinstance(base[key], dict):
+            out += _differences(value, base[key], f"{name}.", source)
+        elif isinstance(value, _PLAIN) or (isinstance(value, list) and all(isinstance(v, _PLAIN) for v in value)):
+            out.append(f"{name}=" + (f"[{','.join(map(str, value))}]" if isinstance(value, list) else str(value)))
+        else:
+            raise ConfigError(name, type(value).__name__, f"differs from the packaged config, in {source}")
+    return out
+
+
+def _base(picked: list[str]) -> dict:
+    """The packaged config of the options ``picked`` (plain, resolved); composition errors in one line."""
+    return _plain(compose_jobs(quote_numeric_options(picked), multirun=False)[0])
+
+
+def _plain(cfg) -> dict:
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+
 def main(argv=None) -> None:
     p = Parser(prog=PROG, description="Add recomputed runs' held-out scores to committed compact results.")
-    p.add_argument("action", choices=("merge", "done"))
+    p.add_argument("action", choices=("merge", "done", "overrides"))
     p.add_argument("paths", type=Path, nargs="+", help="merge: SWEEP_DIR (of launchers/heldout.sh, e.g. "
                    "outputs/heldout/paper) RESULTS_DIR (e.g. results/paper); done: JOB_DIR (exit 0 if its summary "
-                   "has held-out scores, 3 if not)")
+                   "has held-out scores, 3 if not); overrides: JOB_DIR (the overrides that recompute it, one a line)")
     args = p.parse_args(argv)
     n = 2 if args.action == "merge" else 1
     if len(args.paths) != n:
@@ -94,6 +195,8 @@ def main(argv=None) -> None:
         if args.action == "merge":
             with beneath(args.paths[1], create=False):                  # a job dir swapped for a link: refused
                 merge(args.paths[0], args.paths[1], log=say(PROG))
+        elif args.action == "overrides":
+            print("\n".join(overrides_of(args.paths[0])))
         elif not done(args.paths[0]):
             sys.exit(NOT_DONE)
 
