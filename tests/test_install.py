@@ -43,8 +43,10 @@ def test_every_package_is_listed_in_pyproject():
 def test_conf_dir_is_a_real_directory_shared_by_every_module():
     from rovermarl import config, resources
     from rovermarl.env import make as world  # make_world composes the packaged config, as the CLI does
+    from rovermarl.runner import chunk, identity, trust
 
-    assert world.composer is config.composer is resources.composer and config.CONF_DIR == CONF_DIR
+    assert world.composer is config.composer is resources.composer
+    assert all(m.CONF_DIR is CONF_DIR for m in (chunk, identity, trust))
     assert CONF_DIR.is_absolute() and (CONF_DIR / "config.yaml").is_file()
     assert sorted(p.relative_to(CONF_DIR).as_posix() for p in CONF_DIR.rglob("*.yaml")) == CONF_FILES
 
