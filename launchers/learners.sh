@@ -75,10 +75,11 @@ done_clean() {  # done_clean JOB_DIR: 0 if its compact files are there, made fro
 import sys
 from rovermarl.record.safe_read import read_json
 try:
-    s = read_json(sys.argv[1])
-except Exception as e:                                          # one line, not a traceback
-    sys.exit(f"{sys.argv[1]}: {e}")
-sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and (s.get("provenance") or {}).get("dirty") is False else 3)
+    s = read_json(sys.argv[1], kind="summary")
+except Exception as e:                                          # one line, not a traceback (it names the file)
+    sys.exit(str(e))
+prov = s.get("provenance")
+sys.exit(0 if s.get("train_ic") in ("fixed", "fresh") and isinstance(prov, dict) and prov.get("dirty") is False else 3)
 ' "$1/summary.json"
 }
 

@@ -1,7 +1,7 @@
 """numba's ``njit``, with a compile cache that cannot go stale.
 
 numba's own cache (``cache=True``) stamps a compiled function with its own file only: after an edit of a callee in
-another file (``math.py``'s ``tanh`` under ``stages.py``'s ``sense``, say) it loads the old machine code. Every module
+another file (``math.py``'s ``tanh`` under ``sense_flat``, say) it loads the old machine code. Every module
 of rovermarl that compiles imports ``njit`` from here instead; this module puts :class:`SourcesLocator` in front of
 numba's cache locators, so that a cached function's stamp is a hash of every numba-using source it may reach: all of
 rovermarl's, and for a plug-in outside the package (a world, an operator) those of its own directory too. A debug

@@ -128,6 +128,7 @@ def test_compiled_loop_only_where_it_applies(overrides, target, local, expected)
     (["k=1", "evaluation.fresh_ic=true"], "under evaluation.fresh_ic every generation draws new initial conditions"),
     (["k=1", "parallel.ic_shards=2"], "IC shards (parallel.ic_shards > 1) score teams in other processes"),
     (["algorithm=ccea"], "the CCEA has no compiled generation loop"),
+    (["algorithm=cma"], "CMA-ES has no compiled generation loop"),
 ])
 def test_a_compiled_loop_where_none_applies_is_refused_in_one_line(overrides, why):
     sys.path.insert(0, str(ROOT))

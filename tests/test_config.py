@@ -137,3 +137,11 @@ def test_configs_from_before_the_algorithm_group_still_build_and_give_the_same_r
     a, b = Run(new, seed=3).advance(40), Run(old, seed=3).advance(40)
     for key in a:
         np.testing.assert_array_equal(a[key], b[key])
+
+
+def test_the_old_overrides_command_says_where_it_went():
+    """``python -m rovermarl.config JOB_DIR`` left with the held-out migration (studies/heldout/report.py)."""
+    proc = run_cli("results/paper/anything", module="rovermarl.config", timeout=60)
+    assert proc.returncode == 2 and proc.stdout == "", proc.stdout + proc.stderr
+    assert proc.stderr.strip() == ("rovermarl.config: error: a job's overrides are read back by `python "
+                                   "studies/heldout/report.py overrides JOB_DIR` now")

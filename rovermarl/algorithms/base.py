@@ -265,7 +265,8 @@ class Algorithm:
     def check_run(self, fresh_ic: bool, local: bool) -> None:
         """Refuse (:class:`~rovermarl.errors.ConfigError`, one line) a run this algorithm cannot honour as
         configured: under ``evaluation.fresh_ic`` (``fresh_ic``), or with teams scored in other processes (``local``
-        false: ``parallel.ic_shards`` > 1). The runner calls it before any work."""
+        false: ``parallel.ic_shards`` > 1). The runner calls it before any work and reports a key of the algorithm's
+        own (``loop``) under ``algorithm.``, a dotted one (``parallel.ic_shards``) as it is."""
 
     def evaluations_per_generation(self, fresh_ic: bool = False) -> float:
         """Team evaluations one generation costs (``fresh_ic``: under ``evaluation.fresh_ic``): what the runner's

@@ -124,8 +124,8 @@ def validate(cfg: DictConfig) -> None:
     built.algorithm.kernel_functions(built.world.compiled)
     try:
         built.algorithm.check_run(built.evaluation["fresh_ic"], local=par.shards == 1)
-    except errors.ConfigError as e:                    # the algorithm's own key, or another section's (parallel.*)
-        raise (e if str(e.key).split(".")[0] in plain else e.under("algorithm")) from None
+    except errors.ConfigError as e:                    # its own key (loop) under algorithm; a dotted one is another
+        raise (e if "." in str(e.key) else e.under("algorithm")) from None     # section's (parallel.ic_shards)
     budget.check(plain, series_bytes(built.algorithm.series),
                  built.algorithm.evaluations_per_generation(built.evaluation["fresh_ic"]))
 

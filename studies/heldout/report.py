@@ -131,8 +131,8 @@ def allowed(override: str, base: dict, source: str) -> bool:
         return False
     m = _OVERRIDE.fullmatch(override)
     if m is None:
-        raise ConfigError("override", override, "is not a plain KEY=VALUE (no +, ~, interpolation or "
-                                 "function), in " + source)
+        raise ConfigError("override", override, "is not a plain KEY=VALUE (no +, ~, interpolation or function), "
+                          "in " + source)
     option = m["value"].strip("'")
     if m["key"] in group_names():
         if not (CONF_DIR / m["key"] / f"{option}.yaml").is_file():
@@ -178,7 +178,6 @@ def _base(picked: list[str]) -> dict:
 
 def _plain(cfg) -> dict:
     return OmegaConf.to_container(cfg, resolve=True)
-
 
 
 def main(argv=None) -> None:
