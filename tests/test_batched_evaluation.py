@@ -31,6 +31,7 @@ def test_evaluate_many_is_a_loop_of_evaluate_bit_for_bit(name, dtype, monkeypatc
         assert 0 < sum(s > 0 for s in one) < 21                     # scoring and zero-scoring teams both
     p = world.prepare(ic)
     monkeypatch.setattr(prepared, "MIN_TEAMS", 1)                    # chunks of any size
+    monkeypatch.setattr(prepared, "MIN_CHUNK", 1)
     monkeypatch.setattr(prepared, "cpus", lambda: 4)                 # 3 threads even on a 2-CPU machine
     for lanes, workers in ((64, 1), (64, 2), (64, 3), (16, 1), (e * 21, 1), (e * 5, 2), (e * 5, 4)):
         monkeypatch.setattr(prepared, "PASS_LANES", lanes)           # 1, 4, 5 or all 21 teams in one pass
@@ -156,16 +157,18 @@ def test_an_error_in_a_pool_thread_is_raised_by_the_call_and_the_next_call_works
     with pytest.raises(ValueError, match="a hook failed in a pool thread"):
         world.evaluate_many(teams, p, workers=2)
     caller = [x for x in seen if isinstance(x, list)]
-    slices = [want[k * 8:(k + 1) * 8] for k in range(4)]           # 4 chunks of 8 teams
-    assert seen.count(False) == 1 and len(caller) == 3           # the pool's task ended at its error: the caller
-    assert all(caller.count(x) == 1 and x in slices for x in caller)    # took the 3 others, each scored right
+    cuts = prepared.guided(32, 2)                                # 7 chunks: 8, 6, 5, 4, 4, 4, 1 teams
+    slices = [want[b0:b1] for b0, b1 in zip(cuts, cuts[1:], strict=False)]
+    assert seen.count(False) == 1 and len(caller) == len(slices) - 1    # the pool's task ended at its error: the
+    assert all(caller.count(x) == 1 and x in slices for x in caller)    # caller took the others, each scored right
     monkeypatch.undo()
     assert world.evaluate_many(teams, p, workers=2).tolist() == want
 
 
 def test_workers_are_capped_at_the_cpus_of_this_process_and_small_populations_stay_on_one_thread(monkeypatch):
-    """workers=1000 starts no more threads than the CPUs this process may use (os.sched_getaffinity); a chunk is at
-    least MIN_TEAMS teams. Counted by the chunks the compiled call is given, and the pool's threads."""
+    """workers=1000 starts no more threads than the CPUs this process may use (os.sched_getaffinity); a thread
+    has at least MIN_TEAMS teams, in guided chunks. Counted by the chunks the compiled call is given, and the pool's
+    threads."""
     import threading
 
     world = make_world("duo")
@@ -183,14 +186,15 @@ def test_workers_are_capped_at_the_cpus_of_this_process_and_small_populations_st
     monkeypatch.setattr(world.compiled, "evaluate_many", counted)
     before = threading.active_count()
     assert world.evaluate_many(teams, p, workers=1000).tolist() == want           # this machine's CPUs
-    assert len(chunks) == min(2 * prepared.cpus(), 64 // prepared.MIN_TEAMS) and sum(chunks) == 64
+    cuts = prepared.guided(64, min(prepared.cpus(), 64 // prepared.MIN_TEAMS))
+    assert sorted(chunks) == sorted(np.diff(cuts).tolist()) and sum(chunks) == 64
     assert len(threads) <= prepared.cpus() and threading.active_count() <= before + prepared.cpus() - 1
     chunks.clear()
     threads.clear()
     monkeypatch.setattr(prepared, "cpus", lambda: 3)
     for _ in range(20):
         assert world.evaluate_many(teams, p, workers=1000).tolist() == want
-        assert sorted(chunks) == [10, 10, 11, 11, 11, 11]        # 2 contiguous chunks a thread
+        assert sorted(chunks, reverse=True) == [11, 9, 8, 6, 5, 5, 4, 4, 4, 4, 4]    # a sixth of what is left, >= 4
         assert len(threads) <= 3                               # the caller and 2 pool threads at most, each call
         chunks.clear()
         threads.clear()
