@@ -7,6 +7,7 @@
 from __future__ import annotations
 
 import re
+import sys
 from pathlib import Path
 
 import yaml
@@ -189,5 +190,5 @@ def compose_config(*overrides: str) -> DictConfig:
 
 if __name__ == "__main__":      # its one command left with the held-out migration, its one user
     print("rovermarl.config: error: a job's overrides are read back by `python studies/heldout/report.py overrides "
-          "JOB_DIR` now", file=__import__("sys").stderr)
+          "JOB_DIR` now", file=sys.stderr)
     raise SystemExit(2)
