@@ -146,8 +146,8 @@ def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: i
 def guided(b: int, threads: int) -> list[int]:
     """Chunk bounds (parts + 1,) over b teams: each chunk a ``2 * threads``-th of the teams left (rounded up), at
     least :data:`MIN_CHUNK`; one chunk on one thread. The small last chunks leave little for the caller to wait on
-    when a thread is held up (``benchmarks/api.py``, 2 cores, B = 64 over even chunks of 16 teams: two threads over
-    one 1.86 against 1.73 idle and 1.06-1.30 against 0.96-1.06 with a core busy)."""
+    when a thread is held up (docs/PERFORMANCE.md, 2026-12-08: 64 teams on 2 cores, side by side with even chunks of
+    16, two threads over one 1.86-1.92 against 1.73-1.79 idle, 1.06-1.30 against 0.96-1.06 with a core busy)."""
     cuts = [0]
     while cuts[-1] < b:
         left = b - cuts[-1]
