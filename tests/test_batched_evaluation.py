@@ -113,6 +113,7 @@ def test_threads_follow_the_caller_from_world_to_world_and_call_to_call(monkeypa
     """Calls that alternate worlds, dtypes and initial conditions, and many small back-to-back calls, split over
     threads, all get the bits of a loop of evaluate."""
     monkeypatch.setattr(prepared, "MIN_TEAMS", 2)
+    monkeypatch.setattr(prepared, "MIN_CHUNK", 2)
     worlds = [make_world("duo"), make_world("duo", dtype="float32"), _world("obstacles")]
     preps = [(w, w.prepare(w.run_ic(k))) for w in worlds for k in (0, 1)]
     rng = np.random.default_rng(5)
@@ -165,10 +166,18 @@ def test_an_error_in_a_pool_thread_is_raised_by_the_call_and_the_next_call_works
     assert world.evaluate_many(teams, p, workers=2).tolist() == want
 
 
+def test_guided_chunks_shrink_to_min_chunk_and_cover_the_population():
+    """prepared.guided: each chunk a (2 * threads)-th of what is left, at least MIN_CHUNK teams (the last what is
+    left); one thread, one chunk; no team, no chunk."""
+    assert prepared.guided(64, 2) == [0, 16, 28, 37, 44, 49, 53, 57, 61, 64]
+    assert prepared.guided(17, 2) == [0, 5, 9, 13, 17]
+    assert prepared.guided(64, 1) == [0, 64]
+    assert prepared.guided(0, 1) == prepared.guided(0, 3) == [0]
+
+
 def test_workers_are_capped_at_the_cpus_of_this_process_and_small_populations_stay_on_one_thread(monkeypatch):
-    """workers=1000 starts no more threads than the CPUs this process may use (os.sched_getaffinity); a thread
-    has at least MIN_TEAMS teams, in guided chunks. Counted by the chunks the compiled call is given, and the pool's
-    threads."""
+    """workers=1000 starts no more threads than the CPUs this process may use (os.sched_getaffinity), nor more than
+    B // MIN_TEAMS, in guided chunks. Counted by the chunks the compiled call is given, and the pool's threads."""
     import threading
 
     world = make_world("duo")

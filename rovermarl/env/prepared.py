@@ -9,9 +9,9 @@ lanes (:mod:`rovermarl.env.kernel.lanes`) and splits a population of at least ``
 contiguous chunks that shrink as they go (:func:`guided`, OpenMP's guided schedule), in a ``queue.SimpleQueue``:
 the calling thread and ``threads - 1`` tasks on this process's one ``concurrent.futures.ThreadPoolExecutor`` each
 take the next chunk until none is left, and the caller cancels a task that has not started (``Future.cancel``), so
-that a thread held up on a busy machine delays one small chunk at most. Each chunk is one call of the compiled
-``evaluate_many`` (the GIL released); each score is the bits ``World.evaluate`` gives, whichever chunk and pass it
-is in.
+that a thread held up on a busy machine delays one chunk at most, a small one once the population is under way.
+Each chunk is one call of the compiled ``evaluate_many`` (the GIL released); each score is the bits
+``World.evaluate`` gives, whichever chunk and pass it is in.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ import numpy as np
 from rovermarl import jit
 
 PASS_LANES = 256        # episodes of all teams in one pass of the batched rollout (16 teams of 16 episodes)
-MIN_TEAMS = 8           # teams a thread at least: a smaller share costs more to hand over than it saves
-MIN_CHUNK = 4           # teams a chunk at least (the last takes what is left): a call costs about 15 us
+MIN_TEAMS = 8           # a thread a MIN_TEAMS teams at most: fewer a thread cost more to hand over than they save
+MIN_CHUNK = 4           # teams a chunk at least (the last takes what is left): a call costs about 15 us (float64)
 NO_FINAL = np.empty((0, 1, 2))          # final_xy when none is kept (no first axis)
 _F64 = np.dtype(np.float64)
 _POOL: dict[int, tuple[int, ThreadPoolExecutor]] = {}   # pid: (threads, this process's pool); a forked child
@@ -101,10 +101,12 @@ def workers_in(workers) -> int | None:
 
 def score_teams(world, teams: np.ndarray, p: Prepared, final_xy=None, workers: int | None = None):
     """Scores (B,), returns (B*E,) of teams (B*N, P) float64 (:func:`genomes_in`) on ``p``; final_xy (B*E, N, 2) if
-    given. ``workers``: threads at most (None: the CPUs this process may run on, :func:`cpus`; never more), each with
-    at least :data:`MIN_TEAMS` teams, in :func:`guided` chunks."""
+    given. ``workers``: threads at most (None: the CPUs this process may run on, :func:`cpus`; never more), and at
+    most one a :data:`MIN_TEAMS` teams, taking :func:`guided` chunks. No team: no call of the kernel."""
     n, b, e = world.n_rovers, teams.shape[0] // world.n_rovers, p.episodes
     scores, returns, sane = np.empty(b), np.empty(b * e), np.empty(b, dtype=np.bool_)
+    if not b:
+        return scores, returns
     final = NO_FINAL if final_xy is None else final_xy
     per_pass = max(1, PASS_LANES // e)
     run = world.compiled.evaluate_many

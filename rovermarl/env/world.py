@@ -311,7 +311,7 @@ class World:
                       workers: int | None = None) -> np.ndarray:
         """Scores (B,) of B teams (B, N, P) on the same ``ic``, each the float :meth:`evaluate` gives, bit for bit.
         Teams share each pass of the rollout's lanes, split over up to ``workers`` threads (None: every CPU this
-        process may use; 1: this thread), at least 8 teams a thread (``prepared.score_teams``). ``final_xy``
+        process may use; 1: this thread), up to B // 8 threads (``prepared.score_teams``). ``final_xy``
         (B, E, N, 2), as in :meth:`returns`."""
         teams = np.asarray(teams)
         if teams.ndim != 3 or teams.shape[1:] != (self.n_rovers, self.n_params):
